@@ -1,0 +1,50 @@
+# coobs: two-command set-up.  `make demo` and `make test` each create .venv when missing,
+# install the project, make sure the system library Open3D needs is present, then run.
+SHELL := /bin/bash
+PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3)
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.coobs-installed
+OUT ?= runs
+
+.PHONY: demo test bench lint syslibs install clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+install: $(STAMP) syslibs
+
+# Open3D needs libusb-1.0 at import time.  Install it with apt-get when running as root,
+# otherwise print the exact command and stop.
+syslibs:
+	@if ! /sbin/ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then \
+	  if [ "$$(id -u)" = "0" ]; then \
+	    echo "installing libusb-1.0-0 (needed by Open3D)"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libusb-1.0-0 >/dev/null; \
+	  else \
+	    echo "Open3D needs the system library libusb-1.0. Run:  sudo apt-get install -y libusb-1.0-0"; \
+	    exit 1; \
+	  fi; \
+	fi
+
+demo: install
+	MPLBACKEND=Agg $(BIN)/coobs run experiments/configs/quickstart.toml --out $(OUT)/quickstart
+
+test: install
+	$(BIN)/lint-imports
+	MPLBACKEND=Agg $(BIN)/python -m pytest -q -p no:cacheprovider
+
+bench: install
+	$(BIN)/coobs bench --out bench.json
+
+lint: install
+	$(BIN)/ruff check .
+	$(BIN)/lint-imports
+
+clean:
+	rm -rf $(VENV) $(OUT) bench.json

@@ -1,0 +1,1 @@
+"""chaser package (see ARCHITECTURE §1)."""

@@ -1,0 +1,1 @@
+"""formation package (see ARCHITECTURE §1)."""

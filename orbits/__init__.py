@@ -1,0 +1,1 @@
+"""orbits package (see ARCHITECTURE §1)."""
