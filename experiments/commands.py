@@ -2,3 +2,5 @@
 
 Add one import line per module that registers commands on ``experiments.cli.app``.
 """
+
+from experiments import scenarios as _scenarios  # noqa: F401  (run, plot)
