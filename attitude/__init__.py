@@ -41,6 +41,7 @@ from attitude.quaternion import (
     scipy_from_quat,
     skew,
 )
+from attitude.rigid_body import angular_momentum_N, kinetic_energy, propagate_torque_free
 
 __all__ = [
     "best_gibbs_set",
@@ -73,6 +74,9 @@ __all__ = [
     "quat_propagate_constant_rate",
     "quat_rotate",
     "quat_slerp",
+    "propagate_torque_free",
+    "angular_momentum_N",
+    "kinetic_energy",
     "rot_x",
     "rot_y",
     "rot_z",
