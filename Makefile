@@ -32,8 +32,14 @@ syslibs:
 	  fi; \
 	fi
 
+# The most complete scenario that exists: the quickstart formation scenario when shipped,
+# otherwise the exact tumbling-target truth.
 demo: install
-	MPLBACKEND=Agg $(BIN)/coobs run experiments/configs/quickstart.toml --out $(OUT)/quickstart
+	@if [ -f experiments/configs/quickstart.toml ]; then \
+	  MPLBACKEND=Agg $(BIN)/coobs run experiments/configs/quickstart.toml --out $(OUT)/quickstart; \
+	else \
+	  $(BIN)/coobs tumble; \
+	fi
 
 test: install
 	$(BIN)/lint-imports

@@ -32,7 +32,7 @@ err_console = Console(stderr=True)
 
 def fail(message: str) -> typer.Exit:
     """Print a one-line error and return the exit (code 2) to raise."""
-    err_console.print(f"error: {message}", markup=False, highlight=False)
+    err_console.print(f"error: {message}", markup=False, highlight=False, soft_wrap=True)
     return typer.Exit(code=2)
 
 
@@ -85,7 +85,7 @@ def bench(
             rows.append({"topic": topic, **row.as_dict()})
             table.add_row(topic, row.benchmark, _fmt(row.figure), row.unit, row.peer,
                           _fmt(row.peer_figure), _fmt(row.ratio), row.note)
-    console.print(table)
+    Console(width=max(console.width, 180)).print(table)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(rows, indent=2, default=float) + "\n")
     console.print(f"wrote {out}")
