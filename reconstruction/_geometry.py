@@ -1,0 +1,200 @@
+"""Private kernels shared by the reconstruction modules: input checks, pinhole projection and its
+Jacobian, small closed-form 3×3 algebra, rotation-vector exponential.
+
+Everything here is vectorised over leading axes and tolerant of NaN rows (a NaN input gives a NaN
+output, never an exception), because the public functions run inside sweeps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__: list[str] = []
+
+
+# --------------------------------------------------------------------------- input checks
+def as_float(a, name: str) -> np.ndarray:
+    try:
+        arr = np.asarray(a, dtype=float)
+    except (TypeError, ValueError) as exc:  # pragma: no cover - message path
+        raise ValueError(f"{name}: not convertible to a float array ({exc})") from None
+    return arr
+
+
+def check_intrinsics(K, name: str = "K") -> np.ndarray:
+    """``(..., n, 3, 3)`` upper-triangular pinhole matrices with last row ``[0, 0, 1]``."""
+    K = as_float(K, name)
+    if K.ndim < 3 or K.shape[-2:] != (3, 3):
+        raise ValueError(f"{name}: expected shape (..., n_views, 3, 3), got {K.shape}")
+    if not np.all(np.isfinite(K)):
+        raise ValueError(f"{name}: contains non-finite values")
+    if not np.allclose(K[..., 2, :], [0.0, 0.0, 1.0]) or not np.allclose(K[..., 1, 0], 0.0):
+        raise ValueError(f"{name}: not a pinhole matrix (last row must be [0, 0, 1], K[1, 0] = 0)")
+    if np.any(K[..., 0, 0] <= 0) or np.any(K[..., 1, 1] <= 0):
+        raise ValueError(f"{name}: focal lengths K[0, 0], K[1, 1] must be > 0, got "
+                         f"{np.min(K[..., 0, 0])!r}, {np.min(K[..., 1, 1])!r}")
+    return K
+
+
+def check_poses(T_CW, name: str = "T_CW") -> np.ndarray:
+    """``(..., n, 4, 4)`` camera-from-world rigid transforms."""
+    T = as_float(T_CW, name)
+    if T.ndim < 3 or T.shape[-2:] != (4, 4):
+        raise ValueError(f"{name}: expected shape (..., n_views, 4, 4), got {T.shape}")
+    if not np.all(np.isfinite(T)):
+        raise ValueError(f"{name}: contains non-finite values")
+    if not np.allclose(T[..., 3, :], [0.0, 0.0, 0.0, 1.0]):
+        raise ValueError(f"{name}: last row must be [0, 0, 0, 1]")
+    R = T[..., :3, :3]
+    err = np.max(np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)))
+    if err > 1e-6 or np.any(np.linalg.det(R) < 0):
+        raise ValueError(f"{name}: rotation block is not a rotation matrix (max |R Rᵀ − I| = {err:.3g})")
+    return T
+
+
+def check_positive(x, name: str) -> np.ndarray:
+    arr = as_float(x, name)
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ValueError(f"{name}: must be finite and > 0, got {x!r}")
+    return arr
+
+
+def check_probability(p: float, name: str) -> float:
+    p = float(p)
+    if not 0.0 < p < 1.0:
+        raise ValueError(f"{name}: must lie in (0, 1), got {p!r}")
+    return p
+
+
+def check_points(X, name: str, *, allow_nan: bool = True) -> np.ndarray:
+    X = as_float(X, name)
+    if X.ndim < 2 or X.shape[-1] != 3:
+        raise ValueError(f"{name}: expected shape (..., n_points, 3), got {X.shape}")
+    if np.any(np.isinf(X)) or (not allow_nan and np.any(np.isnan(X))):
+        raise ValueError(f"{name}: contains non-finite values")
+    return X
+
+
+def check_covariances(C, name: str, points_shape: tuple[int, ...]) -> np.ndarray:
+    C = as_float(C, name)
+    if C.shape[-2:] != (3, 3):
+        raise ValueError(f"{name}: expected shape (..., n_points, 3, 3), got {C.shape}")
+    try:
+        np.broadcast_shapes(C.shape[:-2], points_shape[:-1])
+    except ValueError:
+        raise ValueError(f"{name}: shape {C.shape} does not match the points {points_shape}") from None
+    if np.any(np.isinf(C)):
+        raise ValueError(f"{name}: contains infinite values")
+    return C
+
+
+# --------------------------------------------------------------------------- 3×3 algebra
+def sym3_inv(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse and determinant of symmetric 3×3 matrices ``(..., 3, 3)`` by the adjugate.
+
+    Much faster than ``np.linalg.inv`` on millions of tiny matrices; singular or NaN input
+    gives NaN (never raises).
+    """
+    a, b, c = C[..., 0, 0], C[..., 0, 1], C[..., 0, 2]
+    d, e = C[..., 1, 1], C[..., 1, 2]
+    f = C[..., 2, 2]
+    A = d * f - e * e
+    B = c * e - b * f
+    Cc = b * e - c * d
+    D = a * f - c * c
+    E = b * c - a * e
+    F = a * d - b * b
+    det = a * A + b * B + c * Cc
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_det = np.where(det != 0, 1.0 / det, np.nan)
+    out = np.empty(C.shape, dtype=float)
+    out[..., 0, 0] = A
+    out[..., 0, 1] = out[..., 1, 0] = B
+    out[..., 0, 2] = out[..., 2, 0] = Cc
+    out[..., 1, 1] = D
+    out[..., 1, 2] = out[..., 2, 1] = E
+    out[..., 2, 2] = F
+    return out * inv_det[..., None, None], det
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """``[v×]`` for ``(..., 3)`` (NaN-tolerant; ``attitude.quaternion.skew`` without checks)."""
+    z = np.zeros(v.shape[:-1])
+    x, y, w = v[..., 0], v[..., 1], v[..., 2]
+    return np.stack([np.stack([z, -w, y], -1), np.stack([w, z, -x], -1),
+                     np.stack([-y, x, z], -1)], -2)
+
+
+def rotation_from_rotvec(v: np.ndarray) -> np.ndarray:
+    """Rodrigues' formula ``exp([v×])`` for ``(..., 3)`` rotation vectors (rad), NaN-tolerant."""
+    th2 = np.sum(v * v, axis=-1)
+    th = np.sqrt(th2)
+    small = th2 < 1e-12
+    th_s = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th2 / 6.0, np.sin(th_s) / th_s)
+    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(th_s)) / np.where(small, 1.0, th2))
+    S = skew(v)
+    return np.eye(3) + a[..., None, None] * S + b[..., None, None] * (S @ S)
+
+
+def rotvec_from_rotation(R: np.ndarray) -> np.ndarray:
+    """Rotation vector (rad) of ``(..., 3, 3)`` rotation matrices, accurate for small angles.
+
+    Valid for angles below about 179°; used for error vectors, which are small.
+    """
+    w = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
+                  R[..., 1, 0] - R[..., 0, 1]], -1) * 0.5
+    s = np.linalg.norm(w, axis=-1)
+    c = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
+    th = np.arctan2(s, c)
+    small = s < 1e-12
+    f = np.where(small, 1.0, th / np.where(small, 1.0, s))
+    return w * f[..., None]
+
+
+def proper_rotation_from_svd(B: np.ndarray) -> np.ndarray:
+    """``U diag(1, 1, det(U Vᵀ)) Vᵀ`` of ``B = U D Vᵀ``: the rotation maximising ``tr(Rᵀ B)``.
+
+    000 eq (36)–(37) with the corrections of SEEDS_SPEC FLAG P000-10 (c, d); NaN input gives NaN.
+    """
+    bad = ~np.all(np.isfinite(B), axis=(-2, -1))
+    if np.any(bad):
+        B = np.where(bad[..., None, None], np.eye(3), B)
+    U, _, Vt = np.linalg.svd(B)
+    d = np.sign(np.linalg.det(U @ Vt))
+    d = np.where(d == 0, 1.0, d)
+    U = U.copy()
+    U[..., :, 2] *= d[..., None]
+    R = U @ Vt
+    if np.any(bad):
+        R = np.where(bad[..., None, None], np.nan, R)
+    return R
+
+
+# --------------------------------------------------------------------------- projection
+def project(X_W: np.ndarray, K: np.ndarray, T_CW: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Project world points through pinhole cameras (broadcast over leading axes).
+
+    Parameters
+    ----------
+    X_W : (..., 3) points in the world frame W, m.
+    K : (..., 3, 3) intrinsics, px.
+    T_CW : (..., 4, 4) camera-from-world.
+
+    Returns
+    -------
+    uv_px : (..., 2) pixel coordinates (OpenCV convention).
+    X_C : (..., 3) points in the camera frame, m (depth ``X_C[..., 2]``).
+    J_px_per_m : (..., 2, 3) Jacobian ``∂uv/∂X_W``.
+    """
+    R = T_CW[..., :3, :3]
+    X_C = (R @ X_W[..., None])[..., 0] + T_CW[..., :3, 3]
+    p = (K @ X_C[..., None])[..., 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_z = 1.0 / p[..., 2]
+    uv = p[..., :2] * inv_z[..., None]
+    # ∂uv/∂X_C = (K[:2, :] − uv ⊗ K[2, :]) / z  with K[2, :] = [0, 0, 1]
+    Jc = K[..., :2, :] - uv[..., :, None] * K[..., 2:3, :]
+    Jc = Jc * inv_z[..., None, None]
+    return uv, X_C, Jc @ R

@@ -1,0 +1,345 @@
+"""Multi-view triangulation with per-point covariance (003 §1.4, SEEDS_SPEC §3.3.3).
+
+The paper's weighted algebraic least squares (003 eq 4–6) is solved as the standard homogeneous
+DLT on normalised image coordinates (SEEDS_SPEC FLAG P003-3 d), then refined by Gauss–Newton on
+the reprojection error in pixels, which is the maximum-likelihood estimate under Gaussian pixel
+noise.  The inverse Gauss–Newton information is the point's 3×3 covariance (first order; it equals
+the Cramér–Rao bound of :func:`reconstruction.accuracy.point_covariance` at the estimate).
+
+The paper's point "confidence" W_ρ (003 eq 7) is an algebraic residual; following FLAG P003-3 it
+is reported here as the RMS reprojection error in pixels (``rms_reprojection_px``), and the
+rejection test of 003 eq (8) becomes a chi-square gate on the normalised reprojection residual
+(plus an optional pixel threshold ε_ρ).  FLAG P003-4: W_ρ is a residual, so a registration weight
+must decrease with it (``1 / (W_ρ + ε₀)``); better, use the covariance.
+
+Everything is vectorised over leading batch axes (trials, epochs) and over points: a batch of
+``(..., M, n)`` observations is solved in one pass.  Failure is reported per point in ``status``
+and per cloud in ``ok`` / ``failure_reason``; it never raises inside a sweep.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2 as _chi2
+
+from reconstruction._geometry import (
+    as_float,
+    check_intrinsics,
+    check_poses,
+    check_positive,
+    check_probability,
+    project,
+    sym3_inv,
+)
+
+__all__ = [
+    "STATUS_OK",
+    "STATUS_TOO_FEW_VIEWS",
+    "STATUS_DEGENERATE",
+    "STATUS_BEHIND_CAMERA",
+    "STATUS_REPROJECTION",
+    "STATUS_REASONS",
+    "Triangulation",
+    "triangulate",
+    "triangulate_from_observation",
+]
+
+STATUS_OK = 0
+STATUS_TOO_FEW_VIEWS = 1
+STATUS_DEGENERATE = 2
+STATUS_BEHIND_CAMERA = 3
+STATUS_REPROJECTION = 4
+#: Human-readable reason for each per-point status code (index = code).
+STATUS_REASONS = (
+    "ok",
+    "seen in fewer than 2 views",
+    "degenerate ray geometry (parallel rays or point at infinity)",
+    "behind a camera",
+    "reprojection residual above the gate",
+)
+
+
+@dataclass(frozen=True)
+class Triangulation:
+    """Triangulated point cloud(s) with per-point covariance.
+
+    Batch axes ``...`` are those of the input observations; ``M`` points, ``n`` views.
+
+    Attributes
+    ----------
+    X_W : ndarray (..., M, 3)
+        Points in the world frame W (= Hill frame H), m.  NaN where ``valid`` is False.
+    cov_W : ndarray (..., M, 3, 3)
+        First-order covariance of each point in W, m².  NaN where ``valid`` is False.
+    valid : ndarray (..., M) bool
+        Point accepted (``status == STATUS_OK``).
+    status : ndarray (..., M) int8
+        Per-point code, see ``STATUS_REASONS``.
+    views_used : ndarray (..., M, n) bool
+        Views that entered the final estimate (a view can be dropped as an outlier).
+    n_views : ndarray (..., M) int
+        Number of views used.
+    rms_reprojection_px : ndarray (..., M)
+        Weighted RMS over the used views of the 2-D reprojection residual, px: the point
+        residual W_ρ of 003 eq (7) in the form of FLAG P003-3.  Small means confident.
+    chi2 : ndarray (..., M)
+        Sum of squared normalised reprojection residuals (``dof = 2 n_views − 3``).
+    n_valid : ndarray (...,) int
+        Number of valid points per cloud.
+    ok : bool or ndarray (...,) bool
+        At least one point was triangulated.
+    failure_reason : str or ndarray (...,) str
+        ``""`` when ok, else why no point survived.
+    """
+
+    X_W: np.ndarray
+    cov_W: np.ndarray
+    valid: np.ndarray
+    status: np.ndarray
+    views_used: np.ndarray
+    n_views: np.ndarray
+    rms_reprojection_px: np.ndarray
+    chi2: np.ndarray
+    n_valid: np.ndarray
+    ok: bool | np.ndarray
+    failure_reason: str | np.ndarray
+
+    @property
+    def weight(self) -> np.ndarray:
+        """Scalar point weight ``1 / (W_ρ + 0.1 px)`` of FLAG P003-4 (0 for invalid points)."""
+        return np.where(self.valid, 1.0 / (np.nan_to_num(self.rms_reprojection_px) + 0.1), 0.0)
+
+
+def _solve(uv: np.ndarray, w: np.ndarray, K: np.ndarray, T: np.ndarray, Kinv: np.ndarray,
+           iterations: int) -> tuple[np.ndarray, ...]:
+    """Normalised DLT + Gauss–Newton for points ``(..., n, 2)`` with information weights ``w``.
+
+    ``K, T, Kinv`` broadcast against ``uv[..., :, None, None]`` (shape ``(..., n, 3|4, 3|4)``).
+    ``w`` is ``(..., n)``: camera weight / σ², 0 for absent views.  Returns the point, its
+    information matrix, its inverse and determinant, the residuals ``(..., n, 2)`` and the depths ``(..., n)``.
+    """
+    # --- DLT on normalised coordinates (003 eq 4–6, FLAG P003-3 d): rows x·P3 − P1, y·P3 − P2
+    hom = np.concatenate([uv, np.ones(uv.shape[:-1] + (1,))], -1)
+    xn = (Kinv @ hom[..., None])[..., 0]
+    x = xn[..., 0] / xn[..., 2]
+    y = xn[..., 1] / xn[..., 2]
+    P = T[..., :3, :]
+    sw = np.sqrt(w * (K[..., 0, 0] * K[..., 1, 1]))[..., None]  # pixel-equivalent row scaling
+    A = np.concatenate([(x[..., None] * P[..., 2, :] - P[..., 0, :]) * sw,
+                        (y[..., None] * P[..., 2, :] - P[..., 1, :]) * sw], -2)
+    col = np.sqrt(np.sum(A * A, axis=-2)) + 1e-300  # column equilibration
+    A = A / col[..., None, :]
+    AtA = np.swapaxes(A, -1, -2) @ A
+    _, vecs = np.linalg.eigh(AtA)
+    Xh = vecs[..., :, 0] / col
+    with np.errstate(divide="ignore", invalid="ignore"):
+        X = Xh[..., :3] / Xh[..., 3:4]
+    # --- Gauss–Newton on the reprojection error (pixels)
+    for _ in range(iterations):
+        uvp, X_C, J = project(X[..., None, :], K, T)
+        r = np.where(w[..., None] > 0, uv - uvp, 0.0)
+        JtW = np.swapaxes(J, -1, -2) * w[..., None, None]
+        H = np.sum(JtW @ J, axis=-3)
+        g = np.sum((JtW @ r[..., None])[..., 0], axis=-2)
+        Hinv, _ = sym3_inv(H)
+        dX = (Hinv @ g[..., None])[..., 0]
+        X = X + dX
+        if not np.any(np.abs(dX) > 1e-9 * (1.0 + np.abs(X))):
+            break
+    uvp, X_C, J = project(X[..., None, :], K, T)
+    r = np.where(w[..., None] > 0, uv - uvp, 0.0)
+    JtW = np.swapaxes(J, -1, -2) * w[..., None, None]
+    H = np.sum(JtW @ J, axis=-3)
+    Hinv, det = sym3_inv(H)
+    return X, H, Hinv, det, r, X_C[..., 2]
+
+
+def _cloud_reason(status: np.ndarray) -> np.ndarray:
+    """Per-cloud failure reason from the per-point status ``(..., M)``."""
+    batch = status.shape[:-1]
+    out = np.full(batch, "", dtype=object)
+    flat = status.reshape(-1, status.shape[-1])
+    reasons = out.reshape(-1)
+    for i, s in enumerate(flat):
+        if s.size == 0:
+            reasons[i] = "no tracks to triangulate"
+        elif not np.any(s == STATUS_OK):
+            codes, counts = np.unique(s, return_counts=True)
+            code = int(codes[np.argmax(counts)])
+            reasons[i] = ("all points " + STATUS_REASONS[code] if counts.max() == s.size
+                          else "no point triangulated; mostly " + STATUS_REASONS[code])
+    return out.astype(str)
+
+
+def _scalar(a: np.ndarray):
+    return a.item() if a.ndim == 0 else a
+
+
+def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
+                gate_probability: float = 0.999, max_rms_reprojection_px: float | None = None,
+                drop_worst_view: bool = True, iterations: int = 8) -> Triangulation:
+    """Triangulate tracks seen in 2..n calibrated views, with covariance and outlier rejection.
+
+    For each track the normalised DLT (003 eq 4–6 per FLAG P003-3) gives a start point that
+    Gauss–Newton refines to the minimum of the weighted reprojection error
+
+    .. math:: J(\\rho) = \\sum_k \\frac{W_k}{\\sigma^2} \\lVert \\pi(K_k M_k \\rho) - p_k \\rVert^2 ,
+
+    the maximum-likelihood point under Gaussian pixel noise.  Its covariance is the inverse
+    Gauss–Newton information ``(Σ_k W_k J_kᵀ J_k / σ²)⁻¹``.  A point is rejected when a used view
+    sees it behind the camera (cheirality), when the rays are degenerate, or when its chi-square
+    ``J(ρ̂)`` exceeds the ``gate_probability`` quantile of χ²(2 n_views − 3) (the statistically
+    calibrated form of 003 eq 8).  With 3 or more views, a rejected point is retried once without
+    its worst view (a mismatch in one view is caught by the others).
+
+    Parameters
+    ----------
+    uv_px : array_like (..., M, n, 2)
+        Pixel coordinates (OpenCV convention) of M tracks in n views; NaN where a track is
+        absent from a view.  Leading axes are batch axes (trials, epochs).
+    K : array_like (..., n, 3, 3)
+        Intrinsics, px; broadcast against the batch axes of ``uv_px``.
+    T_CW : array_like (..., n, 4, 4)
+        Camera-from-world poses (world W = Hill frame H), m.
+    pixel_sigma_px : float or array_like broadcastable to (..., M, n)
+        Standard deviation of each pixel coordinate, px.
+    camera_weights : array_like (..., n), optional
+        Camera confidence weights W_k of 003 eq (6)/(9).  Only ratios matter: they are
+        normalised to mean 1, so view k's effective σ is ``pixel_sigma_px / sqrt(W_k)``.
+        Default: all equal (maximum likelihood).
+    gate_probability : float
+        Chi-square gate on the reprojection residual; ``0.999`` rejects 0.1 % of good points.
+    max_rms_reprojection_px : float, optional
+        The paper's threshold ε_ρ on W_ρ (003 eq 8, FLAG P003-3 suggests 2 px), applied in
+        addition to the chi-square gate.
+    drop_worst_view : bool
+        Retry rejected points seen in ≥ 3 views without their largest-residual view.
+    iterations : int
+        Maximum Gauss–Newton iterations (it stops earlier on convergence).
+
+    Returns
+    -------
+    Triangulation
+    """
+    uv = as_float(uv_px, "uv_px")
+    if uv.ndim < 3 or uv.shape[-1] != 2:
+        raise ValueError(f"uv_px: expected shape (..., n_points, n_views, 2), got {uv.shape}")
+    if np.any(np.isinf(uv)):
+        raise ValueError("uv_px: contains infinite values (use NaN for absent observations)")
+    K = check_intrinsics(K)
+    T = check_poses(T_CW)
+    batch, (M, n) = uv.shape[:-3], uv.shape[-3:-1]
+    if K.shape[-3] != n or T.shape[-3] != n:
+        raise ValueError(f"K, T_CW: expected {n} views to match uv_px {uv.shape}, got "
+                         f"K {K.shape} and T_CW {T.shape}")
+    try:
+        batch = np.broadcast_shapes(batch, K.shape[:-3], T.shape[:-3])
+    except ValueError:
+        raise ValueError(f"K, T_CW: batch shapes {K.shape[:-3]}, {T.shape[:-3]} do not broadcast "
+                         f"with uv_px batch {uv.shape[:-3]}") from None
+    sigma = check_positive(pixel_sigma_px, "pixel_sigma_px")
+    try:
+        sigma = np.broadcast_to(sigma, batch + (M, n))
+    except ValueError:
+        raise ValueError(f"pixel_sigma_px: shape {np.shape(pixel_sigma_px)} does not broadcast to "
+                         f"(..., n_points, n_views) = {batch + (M, n)}") from None
+    if camera_weights is None:
+        cw = np.ones(batch + (n,))
+    else:
+        cw = check_positive(camera_weights, "camera_weights")
+        if cw.shape[-1:] != (n,):
+            raise ValueError(f"camera_weights: expected shape (..., {n}), got {cw.shape}")
+        cw = np.broadcast_to(cw / np.mean(cw, axis=-1, keepdims=True), batch + (n,))
+    gate_probability = check_probability(gate_probability, "gate_probability")
+    if max_rms_reprojection_px is not None:
+        max_rms_reprojection_px = float(check_positive(max_rms_reprojection_px,
+                                                       "max_rms_reprojection_px"))
+    if int(iterations) < 1:
+        raise ValueError(f"iterations: must be >= 1, got {iterations!r}")
+
+    uv = np.broadcast_to(uv, batch + (M, n, 2))
+    present = np.all(np.isfinite(uv), axis=-1)
+    uv0 = np.where(present[..., None], uv, 0.0)
+    K_b = np.broadcast_to(K, batch + (n, 3, 3))[..., None, :, :, :]
+    T_b = np.broadcast_to(T, batch + (n, 4, 4))[..., None, :, :, :]
+    Kinv_b = np.linalg.inv(K_b)
+
+    def run(use: np.ndarray, uv_in, Kx, Tx, Kix, cwx, sx):
+        w = np.where(use, cwx / sx**2, 0.0)
+        X, H, Hinv, det, r, depth = _solve(uv_in, w, Kx, Tx, Kix, int(iterations))
+        e2 = np.sum(r * r, axis=-1)
+        chi2 = np.sum(w * e2, axis=-1)
+        cws = np.where(use, cwx, 0.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rms = np.sqrt(np.sum(cws * e2, axis=-1) / np.sum(cws, axis=-1))
+        nv = np.sum(use, axis=-1)
+        status = np.zeros(nv.shape, dtype=np.int8)
+        tr = np.trace(H, axis1=-2, axis2=-1)
+        degenerate = ~np.isfinite(X).all(-1) | ~(det > 1e-14 * (tr / 3.0) ** 3)
+        behind = np.any(use & ~(depth > 0), axis=-1)
+        dof = np.maximum(2 * nv - 3, 1)
+        thresh = _chi2.ppf(gate_probability, dof)
+        bad_fit = chi2 > thresh
+        if max_rms_reprojection_px is not None:
+            bad_fit |= rms > max_rms_reprojection_px
+        status[bad_fit] = STATUS_REPROJECTION
+        status[behind] = STATUS_BEHIND_CAMERA
+        status[degenerate] = STATUS_DEGENERATE
+        status[nv < 2] = STATUS_TOO_FEW_VIEWS
+        worst = np.argmax(w * e2, axis=-1)
+        return X, Hinv, status, rms, chi2, nv, worst
+
+    cw_p = np.broadcast_to(cw[..., None, :], batch + (M, n))
+    X, cov, status, rms, chi2, nv, worst = run(present, uv0, K_b, T_b, Kinv_b, cw_p, sigma)
+    use = present.copy()
+
+    if drop_worst_view and n >= 3:
+        retry = (status == STATUS_REPROJECTION) & (nv >= 3)
+        if np.any(retry):
+            idx = np.nonzero(retry)
+            bidx = idx[:-1]
+            use_r = use[idx].copy()
+            use_r[np.arange(use_r.shape[0]), worst[idx]] = False
+            K_r = np.broadcast_to(K_b, batch + (1, n, 3, 3))[bidx + (0,)]
+            T_r = np.broadcast_to(T_b, batch + (1, n, 4, 4))[bidx + (0,)]
+            Ki_r = np.broadcast_to(Kinv_b, batch + (1, n, 3, 3))[bidx + (0,)]
+            X2, cov2, st2, rms2, chi22, nv2, _ = run(use_r, uv0[idx], K_r, T_r, Ki_r,
+                                                     cw_p[idx], sigma[idx])
+            fixed = st2 == STATUS_OK
+            fidx = tuple(a[fixed] for a in idx)
+            X[fidx], cov[fidx], status[fidx] = X2[fixed], cov2[fixed], st2[fixed]
+            rms[fidx], chi2[fidx], nv[fidx] = rms2[fixed], chi22[fixed], nv2[fixed]
+            use[fidx] = use_r[fixed]
+
+    valid = status == STATUS_OK
+    X = np.where(valid[..., None], X, np.nan)
+    cov = np.where(valid[..., None, None], cov, np.nan)
+    rms = np.where(nv >= 2, rms, np.nan)
+    n_valid = np.sum(valid, axis=-1)
+    reason = _cloud_reason(status)
+    return Triangulation(
+        X_W=X, cov_W=cov, valid=valid, status=status, views_used=use, n_views=nv,
+        rms_reprojection_px=rms, chi2=chi2, n_valid=n_valid,
+        ok=_scalar(np.asarray(n_valid > 0)), failure_reason=_scalar(reason),
+    )
+
+
+def triangulate_from_observation(obs, **options) -> Triangulation:
+    """:func:`triangulate` on a ``vision.observation.Observation`` (``uv_px``, ``K``, ``T_CW``,
+    ``pixel_sigma_px``); ``options`` are passed on.  An observation whose ``status`` is not
+    ``"ok"`` gives a failed cloud whose reason names that status.
+    """
+    status = getattr(obs, "status", "ok")
+    tri = triangulate(obs.uv_px, obs.K, obs.T_CW, pixel_sigma_px=obs.pixel_sigma_px, **options)
+    if status != "ok":
+        bad = np.zeros_like(tri.valid)
+        return Triangulation(
+            X_W=np.full_like(tri.X_W, np.nan), cov_W=np.full_like(tri.cov_W, np.nan), valid=bad,
+            status=tri.status, views_used=tri.views_used, n_views=tri.n_views,
+            rms_reprojection_px=tri.rms_reprojection_px, chi2=tri.chi2,
+            n_valid=np.zeros_like(tri.n_valid), ok=False,
+            failure_reason=f"observation status: {status}",
+        )
+    return tri
