@@ -1,0 +1,630 @@
+"""Monocular relative pose from known feature points, parameterised by Gibbs vectors with switching (001).
+
+Paper 001 (Yue & Hou 2010, SEEDS_SPEC §2) estimates the pose of a target whose feature points
+``X_T`` are known in its body frame from their images in one camera, by Gauss–Newton on the
+image residuals.  The attitude is a Gibbs vector (classical Rodrigues parameters) ``g`` of one of
+four parameter sets ``i`` (001 eq 4), switched with the transforms ``T_j`` of 001 eq (5) whenever a
+component exceeds 1, so the parameterisation never reaches its 180° singularity.
+
+Model and conventions
+---------------------
+* Point map (001 eq 6, FLAG P001-2): ``X_C = R_CT X_T + r_TC_C``.  ``R_CT`` maps target-body
+  components to camera components (it is the paper's ``R``) and ``r_TC_C`` (the paper's ``t``) is
+  the position of the target origin relative to the camera, in camera components.  The camera frame
+  ``C`` is the project's (ARCHITECTURE §2): ``z`` along the boresight, ``x`` right, ``y`` down.
+* Image (001 eq 7): focal-plane coordinates in metres of the inverted image behind the lens,
+  ``x = −f X_C / Z_C``, ``y = −f Y_C / Z_C``.  :func:`focal_plane_from_pixels` and
+  :func:`pixels_from_focal_plane` convert to and from OpenCV pixel coordinates
+  ``u = c_u + (f / p) X_C / Z_C``.
+* Attitude (001 eq 8′, FLAG P001-3): inside the solver, Shuster's convention, as in the paper:
+  ``R_CT = A(g^(i)) R^(i)`` with ``A`` Shuster's attitude matrix
+  (:func:`attitude.gibbs.shuster_matrix_from_gibbs_set`).  At the boundary, the project's Hamilton
+  quaternion ``q_CT`` (``matrix_from_quat(q_CT) = R_CT``); ``(g, i)`` is the parameter set of the
+  Hamilton ``q_TC`` (:attr:`GibbsPose.q_CT`, :meth:`GibbsPose.from_quat`).
+
+Iteration (001 §2.3, SEEDS_SPEC §2.2)
+-------------------------------------
+Predicted camera points ``X̄_C = R(g₀) X_T + t₀`` (14), ``X_r = R(g₀) X_T`` (17), predicted image
+``x̄ = −f X̄/Z̄`` (20), residual ``Δb = x − x̄`` (21), Jacobian ``A_j = J_c [2[X_r×] | I]`` (18, 25)
+with the corrected projection Jacobian of FLAG P001-1
+``J_c = [[−f/Z̄, 0, f X̄/Z̄²], [0, −f/Z̄, f Ȳ/Z̄²]]``, least squares
+``ΔX = (AᵀWA)⁻¹AᵀWΔb`` (28), update ``g ← δg * g`` (10) and ``t ← t + Δt`` (11), switch (5), stop
+when ``|δg| < ε₁`` and ``|Δt| < ε₂``.  The least-squares step (28) is solved through the
+eigen-decomposition of the column-equilibrated normal matrix, which also gives the rank test of (27).
+
+Every function is vectorised over leading batch axes (independent problems: trials, spacecraft,
+random attitudes).  Failures are reported per problem in :attr:`RodriguesPoseResult.failure_reason`
+(never raised): fewer than 3 visible points, a rank-deficient system, a point behind the camera, the
+fixed parameter set of the non-switching variant crossing its singularity, divergence, or no
+convergence within ``max_iterations``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from attitude.gibbs import (
+    best_gibbs_set,
+    gibbs_set_from_quat,
+    gibbs_switch,
+    quat_from_gibbs_set,
+    shuster_gibbs_compose,
+    shuster_matrix_from_gibbs_set,
+)
+from attitude.quaternion import check_quat, quat_conjugate
+
+__all__ = [
+    "FAILURE_REASONS",
+    "GibbsPose",
+    "RodriguesPoseResult",
+    "focal_plane_from_pixels",
+    "pixels_from_focal_plane",
+    "project_focal_plane",
+    "projection_jacobian",
+    "solve_pose_rodrigues",
+    "track_pose_rodrigues",
+]
+
+#: Values of :attr:`RodriguesPoseResult.failure_reason` ("" means success).
+FAILURE_REASONS = (
+    "too_few_points",  # fewer than 3 visible points (001 eq 27 needs n >= 3)
+    "rank_deficient",  # rank A < 6 (001 eq 27: "extract more features")
+    "behind_camera",  # a visible point predicted at Z_C <= 0: the linearisation is meaningless
+    "gibbs_singular",  # non-switching variant: an update carried the fixed set through 180°
+    "diverged",  # non-finite iterate
+    "not_converged",  # eps_attitude / eps_translation_m not reached within max_iterations
+)
+_CODE = {name: k + 1 for k, name in enumerate(FAILURE_REASONS)}
+_REASON_NAMES = np.array(("",) + FAILURE_REASONS)
+
+
+# ---------------------------------------------------------------------------- pose state
+@dataclass(frozen=True)
+class GibbsPose:
+    """Relative pose in 001's parameters: Gibbs vector of a parameter set, and translation.
+
+    Attributes
+    ----------
+    g : (..., 3) ndarray
+        Gibbs vector of parameter set ``gibbs_set`` (001 eq 4, Shuster convention) such that
+        ``R_CT = A(g) R^(i)`` (001 eq 8′).  NaN where a solve failed.
+    gibbs_set : (...,) int ndarray
+        Parameter-set index ``i`` in {0, 1, 2, 3} (reference frame ``r^(i)`` = ``r^(0)`` turned by π
+        about its own i-th axis).
+    r_TC_C : (..., 3) ndarray
+        Target origin relative to the camera, camera components, m (001's ``t``).
+    """
+
+    g: np.ndarray
+    gibbs_set: np.ndarray
+    r_TC_C: np.ndarray
+
+    @classmethod
+    def from_quat(cls, q_CT: ArrayLike, r_TC_C: ArrayLike, *, gibbs_set: ArrayLike | None = None) -> GibbsPose:
+        """Pose from the project's Hamilton ``q_CT`` (``R_CT = matrix_from_quat(q_CT)``) and ``r_TC_C``.
+
+        ``gibbs_set=None`` picks the set whose denominator is the largest quaternion component
+        (every ``|g_j| <= 1``, :func:`attitude.gibbs.best_gibbs_set`); an explicit set (e.g. 0 for the
+        non-switching variant) is used as given and may be singular (``inf`` components).
+        """
+        q_CT = check_quat(q_CT, name="q_CT", unit=False)
+        r = np.asarray(r_TC_C, dtype=float)
+        if r.ndim == 0 or r.shape[-1] != 3 or not np.all(np.isfinite(r)):
+            raise ValueError(f"r_TC_C: expected finite array of shape (..., 3), got shape {r.shape}")
+        q_TC = quat_conjugate(q_CT)  # Shuster's A(q_TC) = R_TCᵀ = R_CT (FLAG P001-3)
+        if gibbs_set is None:
+            g, i = best_gibbs_set(q_TC)
+        else:
+            i = np.asarray(gibbs_set)
+            if not np.issubdtype(i.dtype, np.integer) or np.any((i < 0) | (i > 3)):
+                raise ValueError(f"gibbs_set: must be integers in 0..3, got {gibbs_set!r}")
+            with np.errstate(over="ignore"):  # a set within ~1e-308 of its singularity: inf
+                g = gibbs_set_from_quat(q_TC, i)
+            i = np.broadcast_to(i, g.shape[:-1])
+        shape = np.broadcast_shapes(g.shape, r.shape)
+        return cls(np.broadcast_to(g, shape).copy(), np.broadcast_to(i, shape[:-1]).astype(int),
+                   np.broadcast_to(r, shape).copy())
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Batch shape."""
+        return self.g.shape[:-1]
+
+    @property
+    def valid(self) -> np.ndarray:
+        """``(...,)`` bool: the pose holds finite numbers."""
+        return np.all(np.isfinite(self.g), -1) & np.all(np.isfinite(self.r_TC_C), -1)
+
+    @property
+    def R_CT(self) -> np.ndarray:
+        """``(..., 3, 3)`` target→camera matrix ``A(g^(i)) R^(i)`` (001 eq 8′); NaN where invalid."""
+        out = np.full(self.shape + (3, 3), np.nan)
+        ok = self.valid
+        out[ok] = shuster_matrix_from_gibbs_set(self.g[ok], self.gibbs_set[ok])
+        return out
+
+    @property
+    def q_CT(self) -> np.ndarray:
+        """``(..., 4)`` Hamilton ``q_CT`` (scalar first, ``w >= 0``); NaN where invalid."""
+        out = np.full(self.shape + (4,), np.nan)
+        ok = self.valid
+        out[ok] = quat_conjugate(quat_from_gibbs_set(self.g[ok], self.gibbs_set[ok]))
+        return out
+
+    def where(self, mask: ArrayLike, other: GibbsPose) -> GibbsPose:
+        """Element-wise choice: ``self`` where ``mask`` is true, ``other`` elsewhere."""
+        m = np.asarray(mask, dtype=bool)
+        return GibbsPose(np.where(m[..., None], self.g, other.g), np.where(m, self.gibbs_set, other.gibbs_set),
+                         np.where(m[..., None], self.r_TC_C, other.r_TC_C))
+
+
+@dataclass(frozen=True)
+class RodriguesPoseResult:
+    """Result of :func:`solve_pose_rodrigues` (batch shape ``...``) or :func:`track_pose_rodrigues`.
+
+    Attributes
+    ----------
+    pose : GibbsPose
+        The estimate; NaN where the solve failed.
+    ok : (...,) bool ndarray
+    failure_reason : (...,) str ndarray
+        ``""`` on success, else one of :data:`FAILURE_REASONS`.
+    iterations : (...,) int ndarray
+        Gauss–Newton updates applied.
+    switches : (...,) int ndarray
+        Parameter-set switches (001 eq 5) made during the solve.
+    n_points : (...,) int ndarray
+        Visible points used.
+    residual_rms_m : (...,) ndarray
+        RMS focal-plane reprojection residual at the returned pose (per coordinate), m.
+    """
+
+    pose: GibbsPose
+    ok: np.ndarray
+    failure_reason: np.ndarray
+    iterations: np.ndarray
+    switches: np.ndarray
+    n_points: np.ndarray
+    residual_rms_m: np.ndarray
+
+    @property
+    def q_CT(self) -> np.ndarray:
+        """Hamilton ``q_CT`` ``(..., 4)``; NaN where failed."""
+        return self.pose.q_CT
+
+    @property
+    def R_CT(self) -> np.ndarray:
+        """``R_CT`` ``(..., 3, 3)``; NaN where failed."""
+        return self.pose.R_CT
+
+    @property
+    def r_TC_C(self) -> np.ndarray:
+        """Target position relative to the camera, camera components ``(..., 3)``, m; NaN where failed."""
+        return self.pose.r_TC_C
+
+
+# ---------------------------------------------------------------------------- camera model
+def _check_positive(value: float, name: str) -> float:
+    v = float(value)
+    if not np.isfinite(v) or v <= 0:
+        raise ValueError(f"{name}: must be a positive finite number, got {value!r}")
+    return v
+
+
+def project_focal_plane(points_T: ArrayLike, R_CT: ArrayLike, r_TC_C: ArrayLike, *,
+                        focal_length_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """001 eq (6)–(7): focal-plane image ``x = −f X_C/Z_C``, ``y = −f Y_C/Z_C`` of body-frame points.
+
+    Parameters
+    ----------
+    points_T : (..., M, 3) array
+        Feature points in the target body frame, m.
+    R_CT : (..., 3, 3) array
+        Target→camera rotation.
+    r_TC_C : (..., 3) array
+        Target origin relative to the camera, camera components, m.
+    focal_length_m : float
+
+    Returns
+    -------
+    xy_m : (..., M, 2) ndarray
+        Focal-plane coordinates, m (inverted image; NaN where ``Z_C <= 0``).
+    depth_m : (..., M) ndarray
+        ``Z_C`` of each point, m.
+    """
+    f = _check_positive(focal_length_m, "focal_length_m")
+    P = np.asarray(points_T, dtype=float)
+    R = np.asarray(R_CT, dtype=float)
+    t = np.asarray(r_TC_C, dtype=float)
+    if P.ndim < 2 or P.shape[-1] != 3:
+        raise ValueError(f"points_T: expected shape (..., M, 3), got {P.shape}")
+    if R.ndim < 2 or R.shape[-2:] != (3, 3):
+        raise ValueError(f"R_CT: expected shape (..., 3, 3), got {R.shape}")
+    if t.ndim < 1 or t.shape[-1] != 3:
+        raise ValueError(f"r_TC_C: expected shape (..., 3), got {t.shape}")
+    Xc = np.einsum("...ij,...mj->...mi", R, P) + t[..., None, :]
+    Z = Xc[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xy = np.where((Z > 0)[..., None], -f * Xc[..., :2] / Z[..., None], np.nan)
+    return xy, Z
+
+
+def focal_plane_from_pixels(uv_px: ArrayLike, *, pixel_size_m: float, principal_point_px: ArrayLike) -> np.ndarray:
+    """Focal-plane coordinates of 001 eq (7) from OpenCV pixels: ``x = −(u − c_u) p``, ``y = −(v − c_v) p``."""
+    p = _check_positive(pixel_size_m, "pixel_size_m")
+    uv = np.asarray(uv_px, dtype=float)
+    c = np.asarray(principal_point_px, dtype=float)
+    if uv.ndim == 0 or uv.shape[-1] != 2:
+        raise ValueError(f"uv_px: expected shape (..., 2), got {uv.shape}")
+    if c.shape != (2,):
+        raise ValueError(f"principal_point_px: expected shape (2,), got {c.shape}")
+    return -(uv - c) * p
+
+
+def pixels_from_focal_plane(xy_m: ArrayLike, *, pixel_size_m: float, principal_point_px: ArrayLike) -> np.ndarray:
+    """OpenCV pixels ``u = c_u − x/p``, ``v = c_v − y/p`` of 001 focal-plane coordinates (inverse of the above)."""
+    p = _check_positive(pixel_size_m, "pixel_size_m")
+    xy = np.asarray(xy_m, dtype=float)
+    c = np.asarray(principal_point_px, dtype=float)
+    if xy.ndim == 0 or xy.shape[-1] != 2:
+        raise ValueError(f"xy_m: expected shape (..., 2), got {xy.shape}")
+    if c.shape != (2,):
+        raise ValueError(f"principal_point_px: expected shape (2,), got {c.shape}")
+    return c - xy / p
+
+
+def _predict(P: np.ndarray, g: np.ndarray, i: np.ndarray, t: np.ndarray, f: float):
+    """Eq (14), (17), (20) and (25) for a flat batch: returns x̄ (B, M, 2), Z̄ (B, M), A_j (B, M, 2, 6).
+
+    ``A_j = J_c · (matrix of eq 18)`` is written out product by product: with ``a = −f/Z̄``,
+    ``b_x = f X̄/Z̄²``, ``b_y = f Ȳ/Z̄²`` (FLAG P001-1), row x is ``a·(18)₁ + b_x·(18)₃`` and row y is
+    ``a·(18)₂ + b_y·(18)₃``.
+    """
+    R = shuster_matrix_from_gibbs_set(g, i)
+    Xr = P @ np.swapaxes(R, -1, -2)  # (17)
+    Xc = Xr + t[:, None, :]  # (14)
+    X, Y, Z = Xc[..., 0], Xc[..., 1], Xc[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_z = 1.0 / Z
+        a = -f * inv_z
+        bx = -a * X * inv_z
+        by = -a * Y * inv_z
+    xbar = np.empty(Z.shape + (2,))
+    xbar[..., 0] = a * X  # (20)
+    xbar[..., 1] = a * Y
+    xr, yr, zr = 2.0 * Xr[..., 0], 2.0 * Xr[..., 1], 2.0 * Xr[..., 2]
+    A = np.zeros(Z.shape + (2, 6))
+    A[..., 0, 0] = -yr * bx
+    A[..., 0, 1] = -zr * a + xr * bx
+    A[..., 0, 2] = yr * a
+    A[..., 0, 3] = a
+    A[..., 0, 5] = bx
+    A[..., 1, 0] = zr * a - yr * by
+    A[..., 1, 1] = xr * by
+    A[..., 1, 2] = -xr * a
+    A[..., 1, 4] = a
+    A[..., 1, 5] = by
+    return xbar, Z, A
+
+
+def projection_jacobian(points_T: ArrayLike, pose: GibbsPose, *, focal_length_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted image (001 eq 20) and the 2×6 Jacobian ``A_j`` (eq 25) of every point.
+
+    ``A_j = J_c [2[X_r×] | I]`` with the corrected ``J_c`` of FLAG P001-1; columns are
+    ``[δg, Δt]`` where ``δg`` is the left (error) Gibbs vector of 001 eq (10) and ``Δt`` the additive
+    translation correction (eq 11).
+
+    Parameters
+    ----------
+    points_T : (M, 3) or (..., M, 3) array
+        Feature points in the target body frame, m.
+    pose : GibbsPose
+        Linearisation point, batch shape ``...``.
+    focal_length_m : float
+
+    Returns
+    -------
+    xy_m : (..., M, 2) ndarray
+    A : (..., M, 2, 6) ndarray
+    """
+    f = _check_positive(focal_length_m, "focal_length_m")
+    P = np.asarray(points_T, dtype=float)
+    if P.ndim < 2 or P.shape[-1] != 3:
+        raise ValueError(f"points_T: expected shape (..., M, 3), got {P.shape}")
+    shape = pose.shape
+    M = P.shape[-2]
+    Pb = np.broadcast_to(P, shape + (M, 3)).reshape(-1, M, 3)
+    xbar, _, A = _predict(Pb, pose.g.reshape(-1, 3), pose.gibbs_set.reshape(-1), pose.r_TC_C.reshape(-1, 3), f)
+    return xbar.reshape(shape + (M, 2)), A.reshape(shape + (M, 2, 6))
+
+
+# ---------------------------------------------------------------------------- the solver
+def _compose_switch(dg: np.ndarray, g: np.ndarray, i: np.ndarray, eta: float):
+    """001 eq (10) then the switching rule (5), safe where the composed set lands exactly on 180°."""
+    den = 1.0 - np.sum(dg * g, -1)
+    g_new = np.empty_like(g)
+    i_new = i.copy()
+    reg = den != 0.0
+    if np.any(reg):
+        g_new[reg] = shuster_gibbs_compose(dg[reg], g[reg])
+        g_new[reg], i_new[reg] = gibbs_switch(g_new[reg], i[reg], eta=eta)
+    sing = ~reg
+    if np.any(sing):
+        # g = num/0 lies on the singular surface of set i; T_j (001 eq 5) of the homogeneous form
+        # [num, den] with j = argmax |num_j| is finite: T_1(num/den) = [−den, num3, −num2]/num1, etc.
+        num = dg[sing] + g[sing] - np.cross(dg[sing], g[sing])
+        d = den[sing]
+        j = np.argmax(np.abs(num), -1) + 1
+        n1, n2, n3 = num[:, 0], num[:, 1], num[:, 2]
+        cand = np.stack([np.stack([-d, n3, -n2], -1), np.stack([-n3, -d, n1], -1),
+                         np.stack([n2, -n1, -d], -1)], 0)
+        rows = np.arange(d.size)
+        out = cand[j - 1, rows] / num[rows, j - 1][:, None]
+        ii = i[sing]
+        g_new[sing] = out
+        i_new[sing] = np.where(ii == 0, j, np.where(j == ii, 0, 6 - j - ii))
+    return g_new, i_new
+
+
+def _as_flat_problem(points_T, xy_m, visible, weights, shape):
+    P = np.asarray(points_T, dtype=float)
+    xy = np.asarray(xy_m, dtype=float)
+    if P.ndim < 2 or P.shape[-1] != 3:
+        raise ValueError(f"points_T: expected shape (..., M, 3), got {P.shape}")
+    if not np.all(np.isfinite(P)):
+        raise ValueError("points_T: contains non-finite values")
+    if xy.ndim < 2 or xy.shape[-1] != 2:
+        raise ValueError(f"xy_m: expected shape (..., M, 2), got {xy.shape}")
+    M = P.shape[-2]
+    if xy.shape[-2] != M:
+        raise ValueError(f"xy_m: {xy.shape[-2]} image points for {M} model points in points_T")
+    try:
+        full = np.broadcast_shapes(shape, P.shape[:-2], xy.shape[:-2])
+    except ValueError:
+        raise ValueError(f"xy_m: batch shape {xy.shape[:-2]} does not broadcast with points_T "
+                         f"{P.shape[:-2]} and initial {shape}") from None
+    if visible is None:
+        vis = np.all(np.isfinite(xy), -1)
+    else:
+        vis = np.asarray(visible)
+        if vis.dtype != bool:
+            raise ValueError(f"visible: expected a bool array, got dtype {vis.dtype}")
+        if vis.shape[-1:] != (M,):
+            raise ValueError(f"visible: expected shape (..., {M}), got {vis.shape}")
+        vis = vis & np.all(np.isfinite(xy), -1)
+    if weights is None:
+        w = np.ones(M)
+    else:
+        w = np.asarray(weights, dtype=float)
+        if w.shape[-1:] != (M,) or not np.all(np.isfinite(w)) or np.any(w < 0):
+            raise ValueError(f"weights: expected non-negative finite weights of shape (..., {M}), got shape {w.shape}")
+    full = np.broadcast_shapes(full, vis.shape[:-1], w.shape[:-1])
+    B = int(np.prod(full))
+    Pb = np.broadcast_to(P, full + (M, 3)).reshape(B, M, 3)
+    xyb = np.nan_to_num(np.broadcast_to(xy, full + (M, 2)).reshape(B, M, 2))
+    visb = np.broadcast_to(vis, full + (M,)).reshape(B, M) & (np.broadcast_to(w, full + (M,)).reshape(B, M) > 0)
+    wb = np.broadcast_to(w, full + (M,)).reshape(B, M)
+    return full, Pb, xyb, visb, wb
+
+
+def solve_pose_rodrigues(
+    points_T: ArrayLike,
+    xy_m: ArrayLike,
+    initial: GibbsPose,
+    *,
+    focal_length_m: float,
+    visible: ArrayLike | None = None,
+    weights: ArrayLike | None = None,
+    switching: bool = True,
+    eta: float = 0.0,
+    eps_attitude: float = 1e-8,
+    eps_translation_m: float = 1e-5,
+    max_iterations: int = 50,
+    rcond: float = 1e-6,
+) -> RodriguesPoseResult:
+    """Pose of a target from the images of its known feature points (001 §2, eq 6–28).
+
+    Gauss–Newton on the focal-plane residuals with the attitude as a Gibbs vector of one of four
+    parameter sets, switched by 001 eq (5) whenever ``max |g_j| > 1 + eta``.  With
+    ``switching=False`` this is the non-switching solver the paper compares against: the set of
+    ``initial`` is kept, and an update that would carry the rotation through that set's 180°
+    singularity (composition denominator ``1 − δg·g <= 0`` in eq 10, where ``g`` passes through
+    infinity) ends the solve with ``failure_reason = "gibbs_singular"``.
+
+    Parameters
+    ----------
+    points_T : (M, 3) or (..., M, 3) array
+        Feature points in the target body frame, m.
+    xy_m : (..., M, 2) array
+        Measured focal-plane coordinates (001 eq 7, ``x = −f X_C/Z_C``), m; NaN for unseen points.
+    initial : GibbsPose
+        Initial guess (001 §2.3: the previous epoch's solution, with its set index), batch shape
+        broadcastable with the data.
+    focal_length_m : float
+        Focal length ``f``, m.
+    visible : (..., M) bool array, optional
+        Points to use (default: those with finite ``xy_m``).
+    weights : (..., M) array, optional
+        Per-point weights, the diagonal of ``W`` in eq (28) for both coordinates (default ``W = I``).
+    switching : bool
+        Use the four-set switching (default) or keep the initial set.
+    eta : float
+        Switching hysteresis: switch when ``max |g_j| > 1 + eta`` (0 is the paper's rule).
+    eps_attitude : float
+        ε₁: stop when ``|δg| < eps_attitude`` (dimensionless, ≈ half the angle in rad) ...
+    eps_translation_m : float
+        ε₂: ... and ``|Δt| < eps_translation_m``, m.
+    max_iterations : int
+        Updates allowed before ``"not_converged"``.  Typical solves take 4–6; a cube face seen
+        head-on (4 coplanar points) leaves a shallow valley where Gauss–Newton contracts only
+        ~0.7 per update and needs up to ~40 (SEEDS_SPEC §2.7 suggests 20).
+    rcond : float
+        Rank test of eq (27): the system is rank-deficient when the smallest singular value of the
+        column-equilibrated ``√W A`` is below ``rcond`` times the largest (it is about 0.5 for a
+        cube seen from 100 m, 0.005 for its worst, face-on view; computed through the normal
+        equations, so values below ~1e-7 are not resolved).
+
+    Returns
+    -------
+    RodriguesPoseResult
+        Batch shape = broadcast of the data's and ``initial``'s batch shapes.
+    """
+    f = _check_positive(focal_length_m, "focal_length_m")
+    _check_positive(eps_attitude, "eps_attitude")
+    _check_positive(eps_translation_m, "eps_translation_m")
+    _check_positive(rcond, "rcond")
+    if not isinstance(initial, GibbsPose):
+        raise ValueError(f"initial: expected a GibbsPose, got {type(initial).__name__}")
+    if int(max_iterations) != max_iterations or max_iterations < 1:
+        raise ValueError(f"max_iterations: must be a positive integer, got {max_iterations!r}")
+    if not np.isfinite(eta) or eta < 0:
+        raise ValueError(f"eta: hysteresis must be >= 0, got {eta!r}")
+    shape, P, xy, vis, w = _as_flat_problem(points_T, xy_m, visible, weights, initial.shape)
+    B, M = vis.shape
+    g = np.broadcast_to(initial.g, shape + (3,)).reshape(B, 3).copy()
+    i = np.broadcast_to(initial.gibbs_set, shape).reshape(B).astype(int).copy()
+    t = np.broadcast_to(initial.r_TC_C, shape + (3,)).reshape(B, 3).copy()
+    if np.any((i < 0) | (i > 3)):
+        raise ValueError(f"initial: gibbs_set must be in 0..3, got {np.unique(i)!r}")
+
+    code = np.zeros(B, np.int8)  # 0 running/converged, else 1 + index in FAILURE_REASONS
+    n_pts = vis.sum(-1)
+    code[n_pts < 3] = _CODE["too_few_points"]
+    code[(code == 0) & ~np.all(np.isfinite(g), -1)] = _CODE["gibbs_singular"]  # initial set at 180°
+    code[(code == 0) & ~np.all(np.isfinite(t), -1)] = _CODE["diverged"]
+    done = np.zeros(B, bool)
+    iters = np.zeros(B, int)
+    switches = np.zeros(B, int)
+    wgt_all = (np.sqrt(w) * vis)[..., None]
+    limit = 1.0 + eta
+
+    for _ in range(int(max_iterations)):
+        act = np.flatnonzero((code == 0) & ~done)
+        if act.size == 0:
+            break
+        ga, ia, ta = g[act], i[act], t[act]
+        xbar, Z, Aj = _predict(P[act], ga, ia, ta, f)
+        wgt = wgt_all[act]
+        fail = np.zeros(act.size, np.int8)
+        behind = ~(Z > 0) & vis[act]
+        if behind.any():  # (14): the linearisation is meaningless for a point behind the camera
+            fail[behind.any(-1)] = _CODE["behind_camera"]
+            xbar = np.where(behind[..., None], 0.0, xbar)
+            Aj = np.where(behind[..., None, None], 0.0, Aj)
+        db = ((xy[act] - xbar) * wgt).reshape(act.size, 2 * M)  # (21), (24), (27)
+        A = (Aj * wgt[..., None]).reshape(act.size, 2 * M, 6)  # (25), (27)
+        # (28) by the normal equations of the column-equilibrated system; the eigen-decomposition
+        # gives both the rank test of (27) and the solution.
+        At = np.swapaxes(A, -1, -2)
+        N = At @ A
+        col = np.sqrt(np.einsum("bii->bi", N))
+        deficient = ~np.all(col > 0, -1)
+        if deficient.any():
+            col = np.where(col > 0, col, 1.0)
+        lam, V = np.linalg.eigh(N / (col[:, :, None] * col[:, None, :]))
+        deficient |= ~(lam[:, 0] > (rcond * rcond) * lam[:, -1])
+        rhs = (At @ db[..., None]) / col[..., None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dX = (V @ ((np.swapaxes(V, -1, -2) @ rhs)[..., 0] / lam)[..., None])[..., 0] / col
+        fail[(fail == 0) & deficient] = _CODE["rank_deficient"]
+        dg, dt = dX[:, :3], dX[:, 3:]
+        den = 1.0 - np.sum(dg * ga, -1)  # denominator of (10)
+        if not switching:
+            fail[(fail == 0) & ~(den > 0.0)] = _CODE["gibbs_singular"]
+        fail[(fail == 0) & ~np.all(np.isfinite(dX), -1)] = _CODE["diverged"]
+        good = fail == 0
+        if not good.all():
+            code[act[~good]] = fail[~good]
+            act, ga, ia, ta, dg, dt, den = (x[good] for x in (act, ga, ia, ta, dg, dt, den))
+        if act.size == 0:
+            continue
+        if switching and not np.all(den != 0.0):
+            g_new, i_new = _compose_switch(dg, ga, ia, eta)
+        else:
+            g_new, i_new = shuster_gibbs_compose(dg, ga), ia  # (10)
+            if switching and np.any(np.abs(g_new) > limit):
+                g_new, i_new = gibbs_switch(g_new, ia, eta=eta)  # switching rule, (5)
+        t_new = ta + dt  # (11)
+        finite = np.all(np.isfinite(g_new), -1) & np.all(np.isfinite(t_new), -1)
+        if not finite.all():
+            code[act[~finite]] = _CODE["diverged"]
+        g[act], i[act], t[act] = g_new, i_new, t_new
+        switches[act] += i_new != ia
+        iters[act] += 1
+        conv = finite & (np.sum(dg * dg, -1) < eps_attitude**2) & (np.sum(dt * dt, -1) < eps_translation_m**2)
+        done[act[conv]] = True
+    code[(code == 0) & ~done] = _CODE["not_converged"]
+    ok = code == 0
+
+    # residual at the returned pose
+    rms = np.full(B, np.nan)
+    if np.any(ok):
+        xbar, _, _ = _predict(P[ok], g[ok], i[ok], t[ok], f)
+        r2 = np.sum(((xy[ok] - xbar) ** 2) * vis[ok][..., None], (-1, -2))
+        rms[ok] = np.sqrt(r2 / (2 * n_pts[ok]))
+    g[~ok] = np.nan
+    t[~ok] = np.nan
+    reason = _REASON_NAMES[code]
+    pose = GibbsPose(g.reshape(shape + (3,)), i.reshape(shape), t.reshape(shape + (3,)))
+    return RodriguesPoseResult(pose, ok.reshape(shape), reason.reshape(shape), iters.reshape(shape),
+                               switches.reshape(shape), n_pts.reshape(shape), rms.reshape(shape))
+
+
+def track_pose_rodrigues(
+    points_T: ArrayLike,
+    xy_m: ArrayLike,
+    initial: GibbsPose,
+    *,
+    focal_length_m: float,
+    visible: ArrayLike | None = None,
+    **options,
+) -> RodriguesPoseResult:
+    """Solve a sequence of epochs, each warm-started from the last successful solution (001 §2.3).
+
+    After a failed epoch (too few points, rank deficiency, ...) the next epoch starts again from the
+    last pose that succeeded, so one bad frame does not end the track.  For the non-switching variant
+    a singular crossing is not recoverable this way: every later update from the last good pose has
+    to cross the same singularity, as in the paper, where the program stops at 2228.6 s.
+
+    Parameters
+    ----------
+    points_T : (M, 3) or (..., M, 3) array
+        Feature points in the target body frame, m (fixed over time).
+    xy_m : (K, ..., M, 2) array
+        Measured focal-plane coordinates, epoch axis first, m; NaN for unseen points.
+    initial : GibbsPose
+        Initial guess for the first epoch.
+    focal_length_m : float
+    visible : (K, ..., M) bool array, optional
+    **options
+        Keyword options of :func:`solve_pose_rodrigues` (``switching``, ``eps_attitude``, ...).
+
+    Returns
+    -------
+    RodriguesPoseResult
+        With the epoch axis first, ``(K, ...)``.
+    """
+    xy = np.asarray(xy_m, dtype=float)
+    if xy.ndim < 3 or xy.shape[-1] != 2:
+        raise ValueError(f"xy_m: expected shape (K, ..., M, 2), got {xy.shape}")
+    vis = None if visible is None else np.asarray(visible)
+    if vis is not None and vis.shape[:1] != xy.shape[:1]:
+        raise ValueError(f"visible: expected {xy.shape[0]} epochs on axis 0, got shape {vis.shape}")
+    current = initial
+    out = []
+    for k in range(xy.shape[0]):
+        res = solve_pose_rodrigues(points_T, xy[k], current, focal_length_m=focal_length_m,
+                                   visible=None if vis is None else vis[k], **options)
+        if res.pose.shape != current.shape:
+            current = GibbsPose(*(np.broadcast_to(a, res.pose.shape + a.shape[len(current.shape):]).copy()
+                                  for a in (current.g, current.gibbs_set, current.r_TC_C)))
+        current = res.pose.where(res.ok, current)
+        out.append(res)
+    stack = [np.stack([getattr(r, name) for r in out]) for name in
+             ("ok", "failure_reason", "iterations", "switches", "n_points", "residual_rms_m")]
+    pose = GibbsPose(np.stack([r.pose.g for r in out]), np.stack([r.pose.gibbs_set for r in out]),
+                     np.stack([r.pose.r_TC_C for r in out]))
+    return RodriguesPoseResult(pose, *stack)
