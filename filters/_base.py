@@ -1,0 +1,316 @@
+"""Machinery shared by the additive EKF and the MEKF: validation, gating, failure bookkeeping."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.stats import chi2
+
+from attitude.quaternion import quat_from_matrix
+from attitude.rigid_body import check_inertia
+
+from ._batch import (
+    as_batch,
+    conj,
+    inv3,
+    matrix_from_unit_quat,
+    positive_definite,
+    qmul,
+    rotvec,
+    sym,
+)
+from .dynamics import _Inertia
+from .state import FAILURE_NON_FINITE, FAILURE_NOT_PD, FilterState, ProcessNoise
+
+_IDENTITY_Q = np.array([1.0, 0.0, 0.0, 0.0])
+
+
+class AttitudeFilter:
+    """Common base of :class:`~filters.AttitudeEKF` and :class:`~filters.MEKF` (not used directly).
+
+    Subclasses define the covariance coordinates (``state_layout``), the propagation Jacobian and
+    the measurement Jacobians; this base validates input, gates innovations (chi-square on three
+    degrees of freedom), keeps the covariance symmetric (Joseph form), and flags trials whose
+    covariance stops being positive definite instead of raising inside a batch.
+    """
+
+    #: number of covariance coordinates of the attitude/rate core (without clone)
+    _n_core: int
+    #: number of covariance coordinates of a clone
+    _n_clone: int
+
+    def __init__(
+        self,
+        *,
+        J_kg_m2: ArrayLike,
+        process_noise: ProcessNoise | None = None,
+        gate_probability: float | None = 0.9999,
+        n_substeps: int = 1,
+    ):
+        self.J_kg_m2 = check_inertia(J_kg_m2, name="J_kg_m2")
+        self._inertia = _Inertia(J=self.J_kg_m2)
+        self.process_noise = ProcessNoise() if process_noise is None else process_noise
+        if not isinstance(self.process_noise, ProcessNoise):
+            raise ValueError(f"process_noise: expected a ProcessNoise, got {process_noise!r}")
+        if gate_probability is not None and not (0.0 < gate_probability < 1.0):
+            raise ValueError(f"gate_probability: must be in (0, 1) or None, got {gate_probability!r}")
+        self.gate_probability = gate_probability
+        self.gate_threshold = np.inf if gate_probability is None else float(chi2.ppf(gate_probability, 3))
+        if int(n_substeps) != n_substeps or n_substeps < 1:
+            raise ValueError(f"n_substeps: must be an integer >= 1, got {n_substeps!r}")
+        self.n_substeps = int(n_substeps)
+
+    # ------------------------------------------------------------------ construction
+    @property
+    def estimates_inertia_ratios(self) -> bool:
+        return False
+
+    @property
+    def n_tangent(self) -> int:
+        """Dimension of the tangent error ``[a, δω, (δp)]`` used for NEES."""
+        return 8 if self.estimates_inertia_ratios else 6
+
+    def initial_state(
+        self,
+        q_NT: ArrayLike,
+        omega_TN_T: ArrayLike,
+        P0: ArrayLike,
+        *,
+        t_s: float = 0.0,
+        inertia_ratios: ArrayLike | None = None,
+    ) -> FilterState:
+        """Initial state of a batch.
+
+        Parameters
+        ----------
+        q_NT : (4,) or (M, 4) array
+            Initial attitude estimates (normalised here).
+        omega_TN_T : (3,) or (M, 3) array
+            Initial rate estimates, rad/s.
+        P0 : (n, n) or (M, n, n) array
+            Initial covariance in the coordinates of :attr:`state_layout` without the clone
+            (see :meth:`initial_covariance` for the one that matches 003 eq (35)).
+        t_s : float
+            Epoch of the initial estimate.
+        inertia_ratios : (2,) or (M, 2) array, optional
+            Initial inertia-ratio estimates (inertia-ratio MEKF only; default: those of ``J_kg_m2``).
+        """
+        q = np.asarray(q_NT, dtype=float)
+        if q.ndim == 1:
+            q = q[None]
+        if q.ndim != 2 or q.shape[1] != 4 or not np.all(np.isfinite(q)):
+            raise ValueError(f"q_NT: expected finite (4,) or (M, 4), got shape {np.shape(q_NT)}")
+        n = np.linalg.norm(q, axis=1, keepdims=True)
+        if np.any(n < 1e-6):
+            raise ValueError("q_NT: zero quaternion")
+        q = q / n
+        M = q.shape[0]
+        w = np.asarray(omega_TN_T, dtype=float)
+        w = as_batch(w, M, (3,), "omega_TN_T").copy()
+        if not np.all(np.isfinite(w)):
+            raise ValueError("omega_TN_T: contains non-finite values")
+        nc = self._n_core
+        P = as_batch(np.asarray(P0, dtype=float), M, (nc, nc), "P0").copy()
+        P = sym(P)
+        if not np.all(positive_definite(P)):
+            raise ValueError("P0: not positive definite")
+        ratios = None
+        if self.estimates_inertia_ratios:
+            if inertia_ratios is None:
+                inertia_ratios = self.default_inertia_ratios
+            ratios = as_batch(np.asarray(inertia_ratios, dtype=float), M, (2,), "inertia_ratios").copy()
+            if not np.all(np.isfinite(ratios)) or np.any(ratios <= 0):
+                raise ValueError(f"inertia_ratios: must be finite and > 0, got {ratios.tolist()}")
+        elif inertia_ratios is not None:
+            raise ValueError("inertia_ratios: this filter uses the known J_kg_m2 (no ratio state)")
+        return FilterState(
+            t_s=float(t_s), q_NT=q, omega_TN_T=w, P=P, inertia_ratios=ratios, q_NT_clone=None,
+            t_clone_s=None, n_accepted=np.zeros(M, dtype=int), n_rejected=np.zeros(M, dtype=int),
+            failed=np.zeros(M, dtype=bool), failure_reason=np.full(M, "", dtype=object),
+            last_nis=np.full(M, np.nan),
+        )
+
+    # ------------------------------------------------------------------ helpers
+    def _check_state(self, state: FilterState) -> None:
+        if not isinstance(state, FilterState):
+            raise ValueError(f"state: expected a FilterState, got {type(state).__name__}")
+        n = self._n_core + (self._n_clone if state.has_clone else 0)
+        if state.P.shape[1:] != (n, n):
+            raise ValueError(
+                f"state: covariance of shape {state.P.shape[1:]} does not belong to "
+                f"{type(self).__name__} (expected {(n, n)})"
+            )
+
+    def _sanitized(self, state: FilterState):
+        """Arrays with failed rows replaced by harmless values (so batch kernels never see NaN)."""
+        f = state.failed
+        if not f.any():
+            return state.q_NT, state.omega_TN_T, state.P, state.q_NT_clone, state.inertia_ratios
+        q = np.where(f[:, None], _IDENTITY_Q, state.q_NT)
+        w = np.where(f[:, None], 0.0, state.omega_TN_T)
+        n = state.P.shape[-1]
+        P = np.where(f[:, None, None], np.eye(n), state.P)
+        qc = None if state.q_NT_clone is None else np.where(f[:, None], _IDENTITY_Q, state.q_NT_clone)
+        p = None if state.inertia_ratios is None else np.where(f[:, None], 1.0, state.inertia_ratios)
+        return q, w, P, qc, p
+
+    def _finish(self, state: FilterState, *, q, w, P, qc, p, accepted=None, rejected=None,
+                nis=None, t_s=None, t_clone_s=None, check_pd=True) -> FilterState:
+        """Assemble the new state: detect failures, NaN the failed rows, count measurements."""
+        failed = state.failed.copy()
+        reason = state.failure_reason.copy()
+        P = sym(P)
+        finite = (np.isfinite(q).all(1) & np.isfinite(w).all(1) & np.isfinite(P).all((1, 2)))
+        new_nf = ~failed & ~finite
+        reason[new_nf] = FAILURE_NON_FINITE
+        failed |= new_nf
+        if check_pd:
+            nc = self._n_core
+            pd = positive_definite(P[:, :nc, :nc])
+            new_pd = ~failed & ~pd
+            reason[new_pd] = FAILURE_NOT_PD
+            failed |= new_pd
+        if failed.any():
+            fm = failed[:, None]
+            q = np.where(fm, np.nan, q)
+            w = np.where(fm, np.nan, w)
+            P = np.where(failed[:, None, None], np.nan, P)
+            if qc is not None:
+                qc = np.where(fm, np.nan, qc)
+            if p is not None:
+                p = np.where(fm, np.nan, p)
+        n_acc = state.n_accepted + (0 if accepted is None else (accepted & ~failed))
+        n_rej = state.n_rejected + (0 if rejected is None else (rejected & ~failed))
+        last_nis = np.full(q.shape[0], np.nan) if nis is None else np.where(failed, np.nan, nis)
+        return FilterState(
+            t_s=state.t_s if t_s is None else float(t_s), q_NT=q, omega_TN_T=w, P=P,
+            inertia_ratios=p, q_NT_clone=qc,
+            t_clone_s=state.t_clone_s if t_clone_s is None else t_clone_s,
+            n_accepted=n_acc, n_rejected=n_rej, failed=failed, failure_reason=reason,
+            last_nis=last_nis,
+        )
+
+    @staticmethod
+    def _measurement_rows(z: ArrayLike | None, M: int, width: int, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Measurement batch ``(M, width)`` and its validity mask; None or NaN rows are missing."""
+        if z is None:
+            return np.tile(_IDENTITY_Q[:width] if width == 4 else np.zeros(width), (M, 1)), np.zeros(M, bool)
+        z = np.asarray(z, dtype=float)
+        if z.shape == (width,):
+            z = np.broadcast_to(z, (M, width))
+        if z.shape != (M, width):
+            raise ValueError(f"{name}: expected shape ({width},) or ({M}, {width}), got {z.shape}")
+        valid = np.all(np.isfinite(z), axis=1)
+        if width == 4:
+            nz = np.linalg.norm(np.where(valid[:, None], z, 1.0), axis=1)
+            valid &= nz > 1e-6
+            z = np.where(valid[:, None], z / np.where(valid, nz, 1.0)[:, None], _IDENTITY_Q)
+        return z, valid
+
+    @staticmethod
+    def _cov_rows(cov: ArrayLike, M: int, name: str) -> tuple[np.ndarray, np.ndarray]:
+        cov = np.asarray(cov, dtype=float)
+        cov = as_batch(cov, M, (3, 3), name)
+        finite = np.all(np.isfinite(cov), axis=(1, 2))
+        cov = np.where(finite[:, None, None], sym(cov), np.eye(3))
+        return cov, finite
+
+    @staticmethod
+    def _frame_rows(R: ArrayLike, M: int, name: str) -> np.ndarray:
+        R = as_batch(np.asarray(R, dtype=float), M, (3, 3), name)
+        if not np.all(np.isfinite(R)):
+            raise ValueError(f"{name}: contains non-finite values")
+        err = np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)).max()
+        if err > 1e-6 or np.any(np.linalg.det(R) <= 0):
+            raise ValueError(f"{name}: not a rotation matrix (orthonormality error {err:.2e})")
+        return R
+
+    def _gated_update(self, P, r, H, R, valid, G=None):
+        """Batched Kalman update with chi-square gating.
+
+        ``r (M, m)`` innovation, ``H (M, m, n)``, ``R (M, m, m)``; ``G (M, 3, m)`` projects a
+        4-component quaternion innovation onto its 3 rotational degrees of freedom for the gate.
+        Returns (dx, P_new, accepted, rejected, nis).
+        """
+        M, m, n = H.shape
+        Ht = np.swapaxes(H, -1, -2)
+        PHt = P @ Ht
+        S = sym(H @ PHt + R)
+        if m == 3:
+            Sinv, det = inv3(S)
+            good = np.isfinite(det) & (det > 0)
+        else:
+            good = np.all(np.isfinite(S), axis=(1, 2))
+            Sg = np.where(good[:, None, None], S, np.eye(m))
+            try:
+                Sinv = np.linalg.inv(Sg)
+            except np.linalg.LinAlgError:
+                Sinv = np.empty_like(Sg)
+                for i in range(M):
+                    try:
+                        Sinv[i] = np.linalg.inv(Sg[i])
+                    except np.linalg.LinAlgError:
+                        Sinv[i] = np.eye(m)
+                        good[i] = False
+        if G is None:
+            nis = (r[:, None, :] @ Sinv @ r[:, :, None])[:, 0, 0]
+        else:
+            r3 = (G @ r[:, :, None])[:, :, 0]
+            S3inv, det3 = inv3(G @ S @ np.swapaxes(G, -1, -2))
+            good &= np.isfinite(det3) & (det3 > 0)
+            nis = (r3[:, None, :] @ S3inv @ r3[:, :, None])[:, 0, 0]
+        nis = np.where(valid & good, nis, np.nan)
+        passed = valid & good & (nis <= self.gate_threshold)
+        rejected = valid & good & ~passed
+        K = PHt @ Sinv
+        K = np.where(passed[:, None, None], K, 0.0)
+        dx = (K @ r[:, :, None])[:, :, 0]
+        IKH = np.eye(n) - K @ H
+        Pn = IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
+        return dx, Pn, passed, rejected, nis
+
+    @staticmethod
+    def _increment_in_N(dq_H, cov_H, R_NH_prev, R_NH_now, cov_side):
+        """ΔR_N = R_NH(now) ΔR_H R_NH(prev)ᵀ and the left-perturbation covariance in N."""
+        q_now = quat_from_matrix(R_NH_now)
+        q_prev = quat_from_matrix(R_NH_prev)
+        dq_N = qmul(qmul(q_now, dq_H), conj(q_prev))
+        if cov_side == "right":
+            dR = matrix_from_unit_quat(dq_H)
+            cov_H = dR @ cov_H @ np.swapaxes(dR, -1, -2)
+        cov_N = R_NH_now @ cov_H @ np.swapaxes(R_NH_now, -1, -2)
+        return dq_N, cov_N
+
+    # ------------------------------------------------------------------ public evaluation
+    def tangent_error(self, state: FilterState, q_NT_true: ArrayLike, omega_TN_T_true: ArrayLike,
+                      inertia_ratios_true: ArrayLike | None = None) -> np.ndarray:
+        """True error ``[a, δω, (δp)]`` of each trial, ``(M, 6 or 8)``, for NEES.
+
+        ``a = log(q̂⁻¹ ⊗ q_true)`` (rad, T components), ``δω = ω_true − ω̂`` (rad/s),
+        ``δp = p_true − p̂``.  Failed trials give NaN rows.
+        """
+        self._check_state(state)
+        M = state.n_trials
+        qt = as_batch(np.asarray(q_NT_true, dtype=float), M, (4,), "q_NT_true")
+        wt = as_batch(np.asarray(omega_TN_T_true, dtype=float), M, (3,), "omega_TN_T_true")
+        q, w, _, _, p = self._sanitized(state)
+        a = rotvec(qmul(conj(q), qt))
+        parts = [a, wt - w]
+        if self.estimates_inertia_ratios:
+            if inertia_ratios_true is None:
+                raise ValueError("inertia_ratios_true: needed for the inertia-ratio filter's error")
+            pt = as_batch(np.asarray(inertia_ratios_true, dtype=float), M, (2,), "inertia_ratios_true")
+            parts.append(pt - p)
+        e = np.concatenate(parts, -1)
+        return np.where(state.failed[:, None], np.nan, e)
+
+    def tangent_covariance(self, state: FilterState) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def nees(self, state: FilterState, q_NT_true: ArrayLike, omega_TN_T_true: ArrayLike,
+             inertia_ratios_true: ArrayLike | None = None) -> np.ndarray:
+        """Normalised estimation error squared of each trial, ``(M,)``, on ``n_tangent`` dof."""
+        from .metrics import nees
+
+        e = self.tangent_error(state, q_NT_true, omega_TN_T_true, inertia_ratios_true)
+        return nees(e, self.tangent_covariance(state))

@@ -1,0 +1,246 @@
+"""The paper's 7-state additive-quaternion EKF (003 §2, eq 14–32), batched over trials.
+
+State ``x = [q_NT, ω_TN_T]`` (003 eq 23), additive update of the four quaternion components
+followed by renormalisation, with the corrections of SEEDS_SPEC:
+
+* the prediction carries no noise realisation (FLAG P003-9): ``x'_k = f(x_{k−1})``;
+* propagation by RK4 with the exact Jacobian of the RK4 map (§3.3.7; :mod:`filters.dynamics`);
+* the measured quaternion's sign is chosen so that ``z · q̂ ≥ 0``, the quaternion is renormalised
+  after each update, and the 4×4 measurement covariance from the unscented transform gets a
+  ``1e-12 I`` jitter (FLAG P003-14b);
+* the update is in Joseph form (remark under eq 21).
+
+Measurements
+------------
+(a) :meth:`AttitudeEKF.update_absolute`: an absolute attitude ``z = q_NT ⊗ exp(e/2)``, ``e`` a
+    body-frame rotation-vector error with covariance ``cov_rotvec_T``; ``H = [I₄ 0]`` (the paper's
+    simulation, §3.3.8) and ``R`` the unscented-transform image of ``cov_rotvec_T``.
+(b) :meth:`AttitudeEKF.update_increment`: the rotation increment between the last cloned epoch and
+    now, measured by registration in the rotating Hill frame H (003 eq 29–32, ARCHITECTURE §2).
+    It is converted to N, ``Δq_N = q_NH(now) ⊗ Δq_H ⊗ q_NH(prev)⁻¹``, and compared with
+    ``h(x) = q_NT(now) ⊗ q_NT(clone)⁻¹`` (eq 32) by stochastic cloning: the attitude of the earlier
+    epoch is a copy kept in the state, with its cross-covariance, so the two-epoch measurement is
+    processed without ignoring the correlation between the two attitudes.
+
+Covariance layout (``state_layout``): ``q0 q1 q2 q3 ωx ωy ωz`` then, with a clone,
+``qc0 qc1 qc2 qc3``.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ._base import AttitudeFilter
+from ._batch import conj, left_matrix, qmul, right_matrix, sym, xi_matrix
+from .dynamics import _rk4
+from .noise_mapping import quat_noise_covariance
+from .state import FilterState, ProcessNoise
+
+__all__ = ["AttitudeEKF"]
+
+_CONJ_DIAG = np.diag([1.0, -1.0, -1.0, -1.0])
+
+
+class AttitudeEKF(AttitudeFilter):
+    """003's additive-quaternion EKF on ``[q_NT, ω_TN_T]`` with known inertia, for M trials at once.
+
+    Parameters
+    ----------
+    J_kg_m2 : (3, 3) array
+        Target inertia tensor (kg·m²), known to the filter (003 eq 27; FLAG P003-14c).
+    process_noise : ProcessNoise, optional
+        Spectral densities; the attitude part enters the quaternion block as ``¼ Ξ Σ Ξᵀ``.
+    gate_probability : float or None
+        Chi-square gate on the three rotational degrees of freedom of the innovation: a
+        measurement whose NIS exceeds the ``gate_probability`` quantile of χ²₃ is rejected and
+        counted.  ``None`` disables gating.
+    measurement_jitter : float
+        Added to the diagonal of the rank-3 quaternion measurement covariance (FLAG P003-14b).
+    n_substeps : int
+        RK4 sub-steps per :meth:`predict`.
+    """
+
+    _n_core = 7
+    _n_clone = 4
+
+    def __init__(self, *, J_kg_m2: ArrayLike, process_noise: ProcessNoise | None = None,
+                 gate_probability: float | None = 0.9999, measurement_jitter: float = 1e-12,
+                 n_substeps: int = 1):
+        super().__init__(J_kg_m2=J_kg_m2, process_noise=process_noise,
+                         gate_probability=gate_probability, n_substeps=n_substeps)
+        if not np.isfinite(measurement_jitter) or measurement_jitter < 0:
+            raise ValueError(f"measurement_jitter: must be finite and >= 0, got {measurement_jitter!r}")
+        self.measurement_jitter = float(measurement_jitter)
+
+    def state_layout(self, *, with_clone: bool = False) -> tuple[str, ...]:
+        names = ("q0", "q1", "q2", "q3", "wx", "wy", "wz")
+        return names + (("qc0", "qc1", "qc2", "qc3") if with_clone else ())
+
+    def initial_covariance(self, *, sigma_q: float = 0.1, sigma_omega_rad_s: float = np.deg2rad(0.1)
+                           ) -> np.ndarray:
+        """003 eq (35): ``P0 = diag(σ_q² I₄, σ_ω² I₃)`` (FLAG P003-13: the paper calls it Q)."""
+        _check_sigma(sigma_q, "sigma_q")
+        _check_sigma(sigma_omega_rad_s, "sigma_omega_rad_s")
+        return np.diag(np.r_[np.full(4, sigma_q**2), np.full(3, sigma_omega_rad_s**2)])
+
+    # ------------------------------------------------------------------ propagation
+    def predict(self, state: FilterState, dt_s: float) -> FilterState:
+        """Propagate every trial by ``dt_s`` (003 eq 16–17 with FLAG P003-9); a clone stays put."""
+        self._check_state(state)
+        dt = float(dt_s)
+        if not np.isfinite(dt) or dt < 0:
+            raise ValueError(f"dt_s: must be finite and >= 0, got {dt_s!r}")
+        q, w, P, qc, _ = self._sanitized(state)
+        q1, w1, F = _rk4(q, w, None, dt, self._inertia, 0, "quaternion", self.n_substeps)
+        M, n = P.shape[0], P.shape[1]
+        pn = self.process_noise
+        Xi = xi_matrix(q)
+        Qc = np.zeros((M, 7, 7))
+        Qc[:, :4, :4] = 0.25 * pn.attitude_psd_rad2_s * (Xi @ np.swapaxes(Xi, -1, -2))
+        Qc[:, 4:, 4:] = pn.rate_psd_rad2_s3 * np.eye(3)
+        Qd = 0.5 * dt * (F @ Qc @ np.swapaxes(F, -1, -2) + Qc)
+        if n == 7:
+            Pn = F @ P @ np.swapaxes(F, -1, -2) + Qd
+        else:
+            Pn = np.empty_like(P)
+            Pn[:, :7, :7] = F @ P[:, :7, :7] @ np.swapaxes(F, -1, -2) + Qd
+            Pn[:, :7, 7:] = F @ P[:, :7, 7:]
+            Pn[:, 7:, :7] = np.swapaxes(Pn[:, :7, 7:], -1, -2)
+            Pn[:, 7:, 7:] = P[:, 7:, 7:]
+        return self._finish(state, q=q1, w=w1, P=Pn, qc=qc, p=None, t_s=state.t_s + dt)
+
+    # ------------------------------------------------------------------ measurements
+    def update_absolute(self, state: FilterState, q_NT_meas: ArrayLike | None,
+                        cov_rotvec_T: ArrayLike) -> FilterState:
+        """Update with absolute attitude measurements (003 §3.3.8: ``z = q + v``, ``H = [I₄ 0]``).
+
+        Parameters
+        ----------
+        state : FilterState
+        q_NT_meas : (4,) or (M, 4) array or None
+            Measured attitude, ``q_NT ⊗ exp(e/2)``; rows with NaN (or ``None`` for all) are missing
+            and the trial is only propagated.
+        cov_rotvec_T : (3, 3) or (M, 3, 3) array
+            Covariance of the body-frame rotation-vector error ``e`` (rad²).  For an attitude-angle
+            error ``e`` quoted as one number use
+            :func:`filters.noise_mapping.rotvec_covariance_from_angle_error`.
+        """
+        self._check_state(state)
+        M = state.n_trials
+        z, valid = self._measurement_rows(q_NT_meas, M, 4, "q_NT_meas")
+        cov, cov_ok = self._cov_rows(cov_rotvec_T, M, "cov_rotvec_T")
+        valid &= cov_ok & ~state.failed
+        q, w, P, qc, _ = self._sanitized(state)
+        z = np.where(np.sum(z * q, axis=1, keepdims=True) < 0, -z, z)
+        _, R4 = quat_noise_covariance(q, cov, side="right")
+        R4 = R4 + self.measurement_jitter * np.eye(4)
+        n = P.shape[-1]
+        H = np.zeros((M, 4, n))
+        H[:, :, :4] = np.eye(4)
+        G = 2.0 * np.swapaxes(xi_matrix(q), -1, -2)
+        dx, Pn, acc, rej, nis = self._gated_update(P, z - q, H, R4, valid, G=G)
+        return self._apply(state, q, w, qc, dx, Pn, acc, rej, nis)
+
+    def update_increment(
+        self,
+        state: FilterState,
+        dq_H: ArrayLike | None,
+        cov_rotvec_H: ArrayLike,
+        R_NH_prev: ArrayLike,
+        R_NH_now: ArrayLike,
+        *,
+        cov_side: Literal["left", "right"] = "left",
+    ) -> FilterState:
+        """Update with the registration increment since the clone, then clone the current attitude.
+
+        Parameters
+        ----------
+        state : FilterState
+            Must hold a clone (:meth:`clone`) taken at the earlier epoch of the increment.
+        dq_H : (4,) or (M, 4) array or None
+            Measured increment ``Δq_H`` with ``R(Δq_H) = R_HT(now) R_HT(prev)ᵀ`` (003 eq 31 in H:
+            ``ρ_H(now) = R(Δq_H) ρ_H(prev)``).  NaN rows / ``None``: missing (only re-clone).
+        cov_rotvec_H : (3, 3) or (M, 3, 3) array
+            Covariance (rad², H components) of the rotation-vector error ``v`` of the increment:
+            ``ΔR_meas = exp([v×]) ΔR_true`` for ``cov_side="left"`` (error in the frame of the later
+            cloud), ``ΔR_true exp([v×])`` for ``"right"``.
+        R_NH_prev, R_NH_now : (3, 3) or (M, 3, 3) arrays
+            Hill frame at the clone epoch and now (``v_N = R_NH v_H``).
+        """
+        self._check_state(state)
+        if not state.has_clone:
+            raise ValueError("state: no clone; call clone(state) at the earlier epoch first")
+        if cov_side not in ("left", "right"):
+            raise ValueError(f"cov_side: expected 'left' or 'right', got {cov_side!r}")
+        M = state.n_trials
+        dqH, valid = self._measurement_rows(dq_H, M, 4, "dq_H")
+        cov, cov_ok = self._cov_rows(cov_rotvec_H, M, "cov_rotvec_H")
+        valid &= cov_ok & ~state.failed
+        Rp = self._frame_rows(R_NH_prev, M, "R_NH_prev")
+        Rn = self._frame_rows(R_NH_now, M, "R_NH_now")
+        dqN, covN = self._increment_in_N(dqH, cov, Rp, Rn, cov_side)
+        q, w, P, qc, _ = self._sanitized(state)
+        h = qmul(q, conj(qc))
+        z = np.where(np.sum(dqN * h, axis=1, keepdims=True) < 0, -dqN, dqN)
+        _, R4 = quat_noise_covariance(h, covN, side="left")
+        R4 = R4 + self.measurement_jitter * np.eye(4)
+        H = np.zeros((M, 4, 11))
+        H[:, :, :4] = right_matrix(conj(qc))
+        H[:, :, 7:] = left_matrix(q) @ _CONJ_DIAG
+        G = 2.0 * np.swapaxes(right_matrix(h)[:, :, 1:], -1, -2)
+        dx, Pn, acc, rej, nis = self._gated_update(P, z - h, H, R4, valid, G=G)
+        new = self._apply(state, q, w, qc, dx, Pn, acc, rej, nis)
+        return self.clone(new)
+
+    def _apply(self, state, q, w, qc, dx, Pn, acc, rej, nis):
+        qn = q + dx[:, :4]
+        qn /= np.sqrt(np.sum(qn * qn, 1, keepdims=True))
+        wn = w + dx[:, 4:7]
+        qcn = None
+        if qc is not None:
+            qcn = qc + dx[:, 7:11]
+            qcn /= np.sqrt(np.sum(qcn * qcn, 1, keepdims=True))
+        return self._finish(state, q=qn, w=wn, P=Pn, qc=qcn, p=None, accepted=acc, rejected=rej,
+                            nis=nis)
+
+    # ------------------------------------------------------------------ cloning
+    def clone(self, state: FilterState) -> FilterState:
+        """Copy the current attitude (and its covariance rows) into the clone slot."""
+        self._check_state(state)
+        q, w, P, _, _ = self._sanitized(state)
+        M = state.n_trials
+        Pc = np.empty((M, 11, 11))
+        Pc[:, :7, :7] = P[:, :7, :7]
+        Pc[:, :7, 7:] = P[:, :7, :4]
+        Pc[:, 7:, :7] = P[:, :4, :7]
+        Pc[:, 7:, 7:] = P[:, :4, :4]
+        # the clone is an exact copy, so Pc is singular (PSD); failures are judged on the core block
+        return self._finish(state, q=q, w=w, P=Pc, qc=q.copy(), p=None, t_clone_s=state.t_s,
+                            check_pd=False)
+
+    def drop_clone(self, state: FilterState) -> FilterState:
+        """Remove the clone (back to the 7-state covariance)."""
+        self._check_state(state)
+        if not state.has_clone:
+            return state
+        return state.replace(P=state.P[:, :7, :7].copy(), q_NT_clone=None, t_clone_s=None)
+
+    # ------------------------------------------------------------------ evaluation
+    def tangent_covariance(self, state: FilterState) -> np.ndarray:
+        """Covariance ``(M, 6, 6)`` of ``[a, δω]``: ``a ≈ 2 Ξ(q̂)ᵀ δq`` (body-frame rotation vector)."""
+        self._check_state(state)
+        q, _, P, _, _ = self._sanitized(state)
+        M = state.n_trials
+        Gm = np.zeros((M, 6, 7))
+        Gm[:, :3, :4] = 2.0 * np.swapaxes(xi_matrix(q), -1, -2)
+        Gm[:, 3:, 4:] = np.eye(3)
+        C = sym(Gm @ P[:, :7, :7] @ np.swapaxes(Gm, -1, -2))
+        return np.where(state.failed[:, None, None], np.nan, C)
+
+
+def _check_sigma(v: float, name: str) -> None:
+    if not np.isfinite(v) or v <= 0:
+        raise ValueError(f"{name}: must be finite and > 0, got {v!r}")

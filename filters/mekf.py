@@ -1,0 +1,235 @@
+"""Multiplicative (error-state) EKF for a tumbling target, optionally estimating inertia ratios.
+
+Not in paper 003 (FLAG P003-14b names it as the standard alternative to the additive quaternion
+update).  The nominal state is ``[q_NT, ω_TN_T, (p)]``; the filter's covariance is on the error
+
+* ``a`` — local attitude error, ``q_true = q̂ ⊗ exp(a/2)`` (rad, T components);
+* ``δω = ω_true − ω̂`` (rad/s);
+* ``δp = p_true − p̂`` with ``p = (J_yy/J_xx, J_zz/J_xx)`` when ``estimate_inertia_ratios=True``
+  (FLAG P003-14c: for a non-cooperative target J is unknown; T is taken along the principal axes,
+  and only the two ratios enter Euler's equation 003 eq 27);
+* ``a_c`` — the local error of the cloned attitude, when a clone is held.
+
+After each update the correction is folded into the nominal quaternion (``q̂ ← q̂ ⊗ exp(δa/2)``)
+and the covariance is reset with ``G = I − ½[δa×]`` on the attitude blocks.
+
+Measurements (same API as :class:`filters.AttitudeEKF`):
+
+* absolute attitude ``z = q_NT ⊗ exp(e/2)``: residual ``r = log(q̂⁻¹ ⊗ z)``, ``H = [I₃ 0 …]``;
+* registration increment in H, converted to N: residual ``r = log(Δq_N ⊗ (q̂ ⊗ q̂_c⁻¹)⁻¹)``
+  (N components), ``H = [R̂_NT 0 … −R̂_NT]`` over ``[a, δω, (δp), a_c]`` (stochastic cloning:
+  ``ΔR_true ΔR̂ᵀ ≈ exp([R̂_NT (a − a_c)×])``).
+
+Covariance layout (``state_layout``): ``ax ay az dwx dwy dwz [dp1 dp2] [acx acy acz]``.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ._base import AttitudeFilter
+from ._batch import conj, matrix_from_unit_quat, qexp_half, qmul, rotvec, skew
+from .dynamics import _rk4, inertia_ratios_from_inertia
+from .state import FilterState, ProcessNoise
+
+__all__ = ["MEKF"]
+
+
+class MEKF(AttitudeFilter):
+    """Multiplicative EKF on ``[a, δω, (δp)]`` for M trials at once.
+
+    Parameters
+    ----------
+    J_kg_m2 : (3, 3) array
+        Inertia tensor (kg·m²).  With ``estimate_inertia_ratios=False`` it is the known inertia;
+        with ``True`` it must be diagonal and only supplies the default initial ratios.
+    estimate_inertia_ratios : bool
+        Augment the state with ``p = (J_yy/J_xx, J_zz/J_xx)``.
+    process_noise : ProcessNoise, optional
+    gate_probability : float or None
+        Chi-square (3 dof) innovation gate; rejected measurements are counted in the state.
+    n_substeps : int
+        RK4 sub-steps per :meth:`predict`.
+    """
+
+    _n_clone = 3
+
+    def __init__(self, *, J_kg_m2: ArrayLike, estimate_inertia_ratios: bool = False,
+                 process_noise: ProcessNoise | None = None, gate_probability: float | None = 0.9999,
+                 n_substeps: int = 1):
+        super().__init__(J_kg_m2=J_kg_m2, process_noise=process_noise,
+                         gate_probability=gate_probability, n_substeps=n_substeps)
+        self._ratios = bool(estimate_inertia_ratios)
+        self._n_core = 8 if self._ratios else 6
+        self.default_inertia_ratios = (inertia_ratios_from_inertia(self.J_kg_m2) if self._ratios
+                                       else None)
+
+    @property
+    def estimates_inertia_ratios(self) -> bool:
+        return self._ratios
+
+    def state_layout(self, *, with_clone: bool = False) -> tuple[str, ...]:
+        names = ("ax", "ay", "az", "dwx", "dwy", "dwz")
+        if self._ratios:
+            names += ("dp1", "dp2")
+        return names + (("acx", "acy", "acz") if with_clone else ())
+
+    def initial_covariance(self, *, sigma_q: float = 0.1, sigma_omega_rad_s: float = np.deg2rad(0.1),
+                           sigma_inertia_ratio: float | ArrayLike = 0.3) -> np.ndarray:
+        """Covariance matching 003 eq (35) to first order: ``a ≈ 2 Ξᵀ δq`` gives ``4 σ_q² I₃``.
+
+        ``sigma_inertia_ratio`` (scalar or (2,)) is used only by the inertia-ratio filter.
+        """
+        for v, name in ((sigma_q, "sigma_q"), (sigma_omega_rad_s, "sigma_omega_rad_s")):
+            if not np.isfinite(v) or v <= 0:
+                raise ValueError(f"{name}: must be finite and > 0, got {v!r}")
+        d = [np.full(3, 4.0 * sigma_q**2), np.full(3, sigma_omega_rad_s**2)]
+        if self._ratios:
+            s = np.broadcast_to(np.asarray(sigma_inertia_ratio, dtype=float), (2,))
+            if not np.all(np.isfinite(s)) or np.any(s <= 0):
+                raise ValueError(f"sigma_inertia_ratio: must be finite and > 0, got {sigma_inertia_ratio!r}")
+            d.append(s**2)
+        return np.diag(np.concatenate(d))
+
+    # ------------------------------------------------------------------ propagation
+    def predict(self, state: FilterState, dt_s: float) -> FilterState:
+        """Propagate nominal state (RK4) and error covariance (RK4 of the variational equation)."""
+        self._check_state(state)
+        dt = float(dt_s)
+        if not np.isfinite(dt) or dt < 0:
+            raise ValueError(f"dt_s: must be finite and >= 0, got {dt_s!r}")
+        q, w, P, qc, p = self._sanitized(state)
+        j = np.concatenate([np.ones_like(p[:, :1]), p], -1) if self._ratios else None
+        q1, w1, Phi = _rk4(q, w, j, dt, self._inertia, 2 if self._ratios else 0, "error",
+                           self.n_substeps)
+        nc = self._n_core
+        pn = self.process_noise
+        qdiag = [np.full(3, pn.attitude_psd_rad2_s), np.full(3, pn.rate_psd_rad2_s3)]
+        if self._ratios:
+            qdiag.append(np.full(2, pn.inertia_ratio_psd_1_s))
+        Qc = np.diag(np.concatenate(qdiag))
+        PhiT = np.swapaxes(Phi, -1, -2)
+        Qd = 0.5 * dt * (Phi @ Qc @ PhiT + Qc)
+        if P.shape[-1] == nc:
+            Pn = Phi @ P @ PhiT + Qd
+        else:
+            Pn = np.empty_like(P)
+            Pn[:, :nc, :nc] = Phi @ P[:, :nc, :nc] @ PhiT + Qd
+            Pn[:, :nc, nc:] = Phi @ P[:, :nc, nc:]
+            Pn[:, nc:, :nc] = np.swapaxes(Pn[:, :nc, nc:], -1, -2)
+            Pn[:, nc:, nc:] = P[:, nc:, nc:]
+        return self._finish(state, q=q1, w=w1, P=Pn, qc=qc, p=p, t_s=state.t_s + dt)
+
+    # ------------------------------------------------------------------ measurements
+    def update_absolute(self, state: FilterState, q_NT_meas: ArrayLike | None,
+                        cov_rotvec_T: ArrayLike) -> FilterState:
+        """Update with absolute attitudes ``z = q_NT ⊗ exp(e/2)``, ``e ~ N(0, cov_rotvec_T)``.
+
+        NaN rows (or ``None``) are missing measurements: those trials are only propagated.
+        """
+        self._check_state(state)
+        M = state.n_trials
+        z, valid = self._measurement_rows(q_NT_meas, M, 4, "q_NT_meas")
+        cov, cov_ok = self._cov_rows(cov_rotvec_T, M, "cov_rotvec_T")
+        valid &= cov_ok & ~state.failed
+        q, w, P, qc, p = self._sanitized(state)
+        r = rotvec(qmul(conj(q), z))
+        n = P.shape[-1]
+        H = np.zeros((M, 3, n))
+        H[:, :, :3] = np.eye(3)
+        dx, Pn, acc, rej, nis = self._gated_update(P, r, H, cov, valid)
+        return self._apply(state, q, w, qc, p, dx, Pn, acc, rej, nis)
+
+    def update_increment(
+        self,
+        state: FilterState,
+        dq_H: ArrayLike | None,
+        cov_rotvec_H: ArrayLike,
+        R_NH_prev: ArrayLike,
+        R_NH_now: ArrayLike,
+        *,
+        cov_side: Literal["left", "right"] = "left",
+    ) -> FilterState:
+        """Update with the registration increment since the clone, then clone the current attitude.
+
+        Same arguments as :meth:`filters.AttitudeEKF.update_increment`: ``dq_H`` with
+        ``R(dq_H) = R_HT(now) R_HT(prev)ᵀ``, its rotation-vector covariance in H, and the Hill
+        frame at both epochs; NaN rows / ``None`` are missing epochs (only re-clone).
+        """
+        self._check_state(state)
+        if not state.has_clone:
+            raise ValueError("state: no clone; call clone(state) at the earlier epoch first")
+        if cov_side not in ("left", "right"):
+            raise ValueError(f"cov_side: expected 'left' or 'right', got {cov_side!r}")
+        M = state.n_trials
+        dqH, valid = self._measurement_rows(dq_H, M, 4, "dq_H")
+        cov, cov_ok = self._cov_rows(cov_rotvec_H, M, "cov_rotvec_H")
+        valid &= cov_ok & ~state.failed
+        Rp = self._frame_rows(R_NH_prev, M, "R_NH_prev")
+        Rn = self._frame_rows(R_NH_now, M, "R_NH_now")
+        dqN, covN = self._increment_in_N(dqH, cov, Rp, Rn, cov_side)
+        q, w, P, qc, p = self._sanitized(state)
+        dq_hat = qmul(q, conj(qc))
+        r = rotvec(qmul(dqN, conj(dq_hat)))
+        R_hat = matrix_from_unit_quat(q)
+        nc = self._n_core
+        H = np.zeros((M, 3, nc + 3))
+        H[:, :, :3] = R_hat
+        H[:, :, nc:] = -R_hat
+        dx, Pn, acc, rej, nis = self._gated_update(P, r, H, covN, valid)
+        new = self._apply(state, q, w, qc, p, dx, Pn, acc, rej, nis)
+        return self.clone(new)
+
+    def _apply(self, state, q, w, qc, p, dx, Pn, acc, rej, nis):
+        nc = self._n_core
+        da = dx[:, :3]
+        qn = qmul(q, qexp_half(da))
+        qn /= np.sqrt(np.sum(qn * qn, 1, keepdims=True))
+        wn = w + dx[:, 3:6]
+        pn = None if p is None else p + dx[:, 6:8]
+        n = Pn.shape[-1]
+        G = np.zeros(Pn.shape)
+        G[:] = np.eye(n)
+        G[:, :3, :3] -= 0.5 * skew(da)
+        qcn = None
+        if qc is not None:
+            dac = dx[:, nc:nc + 3]
+            qcn = qmul(qc, qexp_half(dac))
+            qcn /= np.sqrt(np.sum(qcn * qcn, 1, keepdims=True))
+            G[:, nc:, nc:] -= 0.5 * skew(dac)
+        Pn = G @ Pn @ np.swapaxes(G, -1, -2)
+        return self._finish(state, q=qn, w=wn, P=Pn, qc=qcn, p=pn, accepted=acc, rejected=rej,
+                            nis=nis)
+
+    # ------------------------------------------------------------------ cloning
+    def clone(self, state: FilterState) -> FilterState:
+        """Copy the current attitude (error ``a``) into the clone slot, with its covariance rows."""
+        self._check_state(state)
+        q, w, P, _, p = self._sanitized(state)
+        nc = self._n_core
+        M = state.n_trials
+        Pc = np.empty((M, nc + 3, nc + 3))
+        Pc[:, :nc, :nc] = P[:, :nc, :nc]
+        Pc[:, :nc, nc:] = P[:, :nc, :3]
+        Pc[:, nc:, :nc] = P[:, :3, :nc]
+        Pc[:, nc:, nc:] = P[:, :3, :3]
+        return self._finish(state, q=q, w=w, P=Pc, qc=q.copy(), p=p, t_clone_s=state.t_s,
+                            check_pd=False)
+
+    def drop_clone(self, state: FilterState) -> FilterState:
+        """Remove the clone (back to the core covariance)."""
+        self._check_state(state)
+        if not state.has_clone:
+            return state
+        nc = self._n_core
+        return state.replace(P=state.P[:, :nc, :nc].copy(), q_NT_clone=None, t_clone_s=None)
+
+    # ------------------------------------------------------------------ evaluation
+    def tangent_covariance(self, state: FilterState) -> np.ndarray:
+        """Covariance ``(M, n_tangent, n_tangent)`` of ``[a, δω, (δp)]`` (the core block of P)."""
+        self._check_state(state)
+        nc = self._n_core
+        return state.P[:, :nc, :nc].copy()
