@@ -635,7 +635,7 @@ def fit_rigid_ml(P, Q, cov_P, cov_Q, *, robust: bool = True, R0=None, t0=None,
         return r, W
 
     inl = valid.copy()
-    for it in range(int(max_iterations)):
+    for _ in range(int(max_iterations)):
         r, W = residual_info(R, t)
         if robust:
             inl = valid & (_mahalanobis2(r, W) < gate2)

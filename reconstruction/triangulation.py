@@ -20,6 +20,7 @@ and per cloud in ``ok`` / ``failure_reason``; it never raises inside a sweep.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.stats import chi2 as _chi2
@@ -33,6 +34,9 @@ from reconstruction._geometry import (
     project,
     sym3_inv,
 )
+
+if TYPE_CHECKING:
+    from vision.observation import Observation
 
 __all__ = [
     "STATUS_OK",
@@ -160,7 +164,7 @@ def _cloud_reason(status: np.ndarray) -> np.ndarray:
     """Per-cloud failure reason from the per-point status ``(..., M)``."""
     batch = status.shape[:-1]
     out = np.full(batch, "", dtype=object)
-    flat = status.reshape(-1, status.shape[-1])
+    flat = status.reshape((int(np.prod(batch, dtype=int)), status.shape[-1]))
     reasons = out.reshape(-1)
     for i, s in enumerate(flat):
         if s.size == 0:
@@ -326,19 +330,26 @@ def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
     )
 
 
-def triangulate_from_observation(obs, **options) -> Triangulation:
-    """:func:`triangulate` on a ``vision.observation.Observation`` (``uv_px``, ``K``, ``T_CW``,
-    ``pixel_sigma_px``); ``options`` are passed on.  An observation whose ``status`` is not
-    ``"ok"`` gives a failed cloud whose reason names that status.
+def triangulate_from_observation(obs: Observation, *, pixel_sigma_px: float | None = None,
+                                 **options) -> Triangulation:
+    """:func:`triangulate` on a :class:`vision.observation.Observation`.
+
+    Uses ``obs.uv_px``, ``obs.K``, ``obs.T_CW`` and ``obs.pixel_sigma_px`` (override it with
+    ``pixel_sigma_px``, e.g. for a noise-free observation whose σ is 0); ``options`` are passed
+    on.  An observation whose ``status`` is not ``"ok"`` gives a failed cloud whose
+    ``failure_reason`` names that status.
     """
+    sigma = obs.pixel_sigma_px if pixel_sigma_px is None else pixel_sigma_px
+    if not sigma > 0:
+        raise ValueError(f"pixel_sigma_px: the observation's σ is {sigma!r}; pass the σ to assume "
+                         "(> 0) for a noise-free observation")
+    tri = triangulate(obs.uv_px, obs.K, obs.T_CW, pixel_sigma_px=sigma, **options)
     status = getattr(obs, "status", "ok")
-    tri = triangulate(obs.uv_px, obs.K, obs.T_CW, pixel_sigma_px=obs.pixel_sigma_px, **options)
     if status != "ok":
-        bad = np.zeros_like(tri.valid)
         return Triangulation(
-            X_W=np.full_like(tri.X_W, np.nan), cov_W=np.full_like(tri.cov_W, np.nan), valid=bad,
-            status=tri.status, views_used=tri.views_used, n_views=tri.n_views,
-            rms_reprojection_px=tri.rms_reprojection_px, chi2=tri.chi2,
+            X_W=np.full_like(tri.X_W, np.nan), cov_W=np.full_like(tri.cov_W, np.nan),
+            valid=np.zeros_like(tri.valid), status=tri.status, views_used=tri.views_used,
+            n_views=tri.n_views, rms_reprojection_px=tri.rms_reprojection_px, chi2=tri.chi2,
             n_valid=np.zeros_like(tri.n_valid), ok=False,
             failure_reason=f"observation status: {status}",
         )

@@ -1,0 +1,223 @@
+"""Inter-frame association of triangulated tracks (003 §1.5, SEEDS_SPEC §3.3.4).
+
+Between epochs t and t + Δt, each camera in turn is the *primary*: its features are matched
+across the two epochs by descriptor (nearest neighbour with the ratio test, 003 §3.3.2 criterion,
+λ = 0.6), and a match is kept only if it is *consistent in the auxiliary views*: in every other
+view that sees the track at both epochs, the same descriptor match must hold.  The matches of all
+primaries are merged (pairs claimed inconsistently by two primaries are dropped), the camera
+weights are updated by 003 eq (9) normalised per FLAG P003-5, and near-duplicate correspondences
+are removed by the per-epoch AND test of FLAG P003-6, keeping the one with the smaller residual.
+
+Descriptor matching uses OpenCV's brute-force L2 matcher (``cv2.BFMatcher.knnMatch``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from reconstruction._geometry import as_float, check_positive
+
+__all__ = ["Association", "camera_weights_from_counts", "associate",
+           "associate_from_observations"]
+
+
+@dataclass(frozen=True)
+class Association:
+    """Track correspondences between two epochs.
+
+    Attributes
+    ----------
+    idx_prev, idx_next : ndarray (K,) int
+        Matched track indices at t and t + Δt (``X_prev[idx_prev[k]] ↔ X_next[idx_next[k]]``).
+    n_per_primary : ndarray (n,) int
+        N_ρ,k of 003 eq (9): consistent matches found with camera k as primary.
+    camera_weights : ndarray (n,)
+        W_k of 003 eq (9) with FLAG P003-5 (sums to 1); use them at the next frame pair.
+    n_conflicts_removed : int
+        Pairs dropped because two primaries disagreed.
+    n_duplicates_removed : int
+        Pairs dropped as near-duplicates (FLAG P003-6).
+    ok : bool
+        At least 3 correspondences (the minimum of a rigid fit, FLAG P003-8).
+    failure_reason : str
+    """
+
+    idx_prev: np.ndarray
+    idx_next: np.ndarray
+    n_per_primary: np.ndarray
+    camera_weights: np.ndarray
+    n_conflicts_removed: int
+    n_duplicates_removed: int
+    ok: bool
+    failure_reason: str
+
+
+def camera_weights_from_counts(n_per_primary) -> np.ndarray:
+    """003 eq (9) with FLAG P003-5: ``W_k = (1 + N_ρ,k) / (N_cam + Σ_j N_ρ,j)``; sums to 1.
+
+    Parameters
+    ----------
+    n_per_primary : array_like (..., n) int
+        Points obtained with each camera as primary (before merging).
+    """
+    N = as_float(n_per_primary, "n_per_primary")
+    if N.ndim < 1 or np.any(N < 0) or not np.all(np.isfinite(N)):
+        raise ValueError(f"n_per_primary: expected non-negative counts (..., n), got {N!r}")
+    return (1.0 + N) / (N.shape[-1] + np.sum(N, -1, keepdims=True))
+
+
+def _ratio_matches(d_prev: np.ndarray, d_next: np.ndarray, ratio: float) -> np.ndarray:
+    """For each row of ``d_prev`` the index of its nearest neighbour in ``d_next`` passing the
+    ratio test ``d1 < ratio · d2`` (−1 otherwise), by ``cv2.BFMatcher`` (L2)."""
+    import cv2
+
+    out = np.full(len(d_prev), -1, dtype=int)
+    if len(d_prev) == 0 or len(d_next) < 2:
+        return out
+    bf = cv2.BFMatcher(cv2.NORM_L2)
+    knn = bf.knnMatch(np.ascontiguousarray(d_prev, np.float32),
+                      np.ascontiguousarray(d_next, np.float32), k=2)
+    for m in knn:
+        if len(m) == 2 and m[0].distance < ratio * m[1].distance:
+            out[m[0].queryIdx] = m[0].trainIdx
+    return out
+
+
+def _check_views_desc(views, desc, name):
+    v = np.asarray(views, dtype=bool)
+    if v.ndim != 2:
+        raise ValueError(f"views_{name}: expected shape (n_tracks, n_views), got {v.shape}")
+    d = as_float(desc, f"descriptors_{name}")
+    if d.ndim == 2:
+        d = np.broadcast_to(d[:, None, :], (d.shape[0], v.shape[1], d.shape[1]))
+    if d.ndim != 3 or d.shape[:2] != v.shape:
+        raise ValueError(f"descriptors_{name}: expected (n_tracks, D) or (n_tracks, n_views, D) "
+                         f"matching views {v.shape}, got {np.shape(desc)}")
+    return v, d
+
+
+def associate(views_prev, descriptors_prev, views_next, descriptors_next, *, X_prev=None,
+              X_next=None, residual_prev=None, residual_next=None, ratio: float = 0.6,
+              duplicate_distance_m: float = 0.05, min_matches: int = 3) -> Association:
+    """Associate the tracks of two epochs (003 §1.5), with camera weights and de-duplication.
+
+    Parameters
+    ----------
+    views_prev, views_next : array_like (M, n), (M', n) bool
+        Which views see each track at t and t + Δt, e.g. ``tri.views_used & tri.valid[:, None]``.
+    descriptors_prev, descriptors_next : array_like (M, D) or (M, n, D)
+        One descriptor per track, or one per track and view (then the auxiliary-view check
+        compares the auxiliary views' own descriptors).
+    X_prev, X_next : array_like (M, 3), (M', 3), optional
+        Triangulated points (W, m) for the duplicate test; without them no de-duplication.
+    residual_prev, residual_next : array_like (M,), (M',), optional
+        Point residuals W_ρ (``Triangulation.rms_reprojection_px``); of two duplicates the one
+        with the smaller mean residual (003 eq 13) is kept.  Default: keep the first.
+    ratio : float
+        Nearest-neighbour ratio λ (003 §3.3.2: 0.6).
+    duplicate_distance_m : float
+        ε_d of FLAG P003-6: two correspondences closer than this at both epochs are duplicates
+        (SEEDS_SPEC §3.7: about twice the triangulation σ, 0.05 m at 50 m).
+    min_matches : int
+        Fewer correspondences than this give ``ok=False``.
+
+    Returns
+    -------
+    Association
+    """
+    vp, dp = _check_views_desc(views_prev, descriptors_prev, "prev")
+    vn, dn = _check_views_desc(views_next, descriptors_next, "next")
+    n = vp.shape[1]
+    if vn.shape[1] != n:
+        raise ValueError(f"views_next: expected {n} views like views_prev, got {vn.shape}")
+    if dp.shape[-1] != dn.shape[-1]:
+        raise ValueError(f"descriptors_next: length {dn.shape[-1]} differs from "
+                         f"descriptors_prev {dp.shape[-1]}")
+    if not 0.0 < float(ratio) <= 1.0:
+        raise ValueError(f"ratio: must lie in (0, 1], got {ratio!r}")
+    eps = float(check_positive(duplicate_distance_m, "duplicate_distance_m"))
+
+    # per-view matches (candidates: the tracks seen in that view at each epoch)
+    match = np.full((vp.shape[0], n), -1, dtype=int)
+    for v in range(n):
+        a = np.nonzero(vp[:, v])[0]
+        b = np.nonzero(vn[:, v])[0]
+        m = _ratio_matches(dp[a, v], dn[b, v], float(ratio))
+        hit = m >= 0
+        match[a[hit], v] = b[m[hit]]
+
+    counts = np.zeros(n, dtype=int)
+    claims: dict[int, set[int]] = {}
+    for c in range(n):
+        rows = np.nonzero(match[:, c] >= 0)[0]
+        for i in rows:
+            j = match[i, c]
+            aux = vp[i] & vn[j]
+            aux[c] = False
+            if np.all(match[i, aux] == j):
+                counts[c] += 1
+                claims.setdefault(int(i), set()).add(int(j))
+    # merge: drop tracks claimed with different partners, and partners claimed twice
+    pairs = [(i, next(iter(js))) for i, js in claims.items() if len(js) == 1]
+    n_conflicts = len(claims) - len(pairs)
+    partners, cnt = np.unique(np.array([j for _, j in pairs], dtype=int), return_counts=True)
+    shared = set(partners[cnt > 1].tolist())
+    kept = [(i, j) for i, j in pairs if j not in shared]
+    n_conflicts += len(pairs) - len(kept)
+    ip = np.array([i for i, _ in kept], dtype=int)
+    jn = np.array([j for _, j in kept], dtype=int)
+
+    n_dup = 0
+    if X_prev is not None and X_next is not None and ip.size > 1:
+        from scipy.spatial import cKDTree
+
+        Xp = as_float(X_prev, "X_prev")[ip]
+        Xn = as_float(X_next, "X_next")[jn]
+        res = np.zeros(ip.size)
+        if residual_prev is not None:
+            res = res + 0.5 * as_float(residual_prev, "residual_prev")[ip]
+        if residual_next is not None:
+            res = res + 0.5 * as_float(residual_next, "residual_next")[jn]
+        res = np.where(np.isfinite(res), res, np.inf)
+        order = np.argsort(res, kind="stable")
+        fin = np.all(np.isfinite(Xp), -1) & np.all(np.isfinite(Xn), -1)
+        keep = np.ones(ip.size, bool)
+        close = cKDTree(np.where(fin[:, None], Xp, 1e300)).query_pairs(eps, output_type="ndarray")
+        if close.size:
+            d_next = np.linalg.norm(Xn[close[:, 0]] - Xn[close[:, 1]], axis=-1)
+            close = close[d_next < eps]
+            rank = np.empty(ip.size, int)
+            rank[order] = np.arange(ip.size)
+            # process in order of quality: a point is dropped if a better kept one is near it
+            nbrs: dict[int, list[int]] = {}
+            for a, b in close:
+                nbrs.setdefault(int(a), []).append(int(b))
+                nbrs.setdefault(int(b), []).append(int(a))
+            for k in order:
+                if keep[k]:
+                    for other in nbrs.get(int(k), []):
+                        if rank[other] > rank[k]:
+                            keep[other] = False
+        n_dup = int(np.sum(~keep))
+        ip, jn = ip[keep], jn[keep]
+
+    ok = ip.size >= int(min_matches)
+    return Association(
+        idx_prev=ip, idx_next=jn, n_per_primary=counts,
+        camera_weights=camera_weights_from_counts(counts), n_conflicts_removed=int(n_conflicts),
+        n_duplicates_removed=n_dup, ok=bool(ok),
+        failure_reason="" if ok else f"fewer than {int(min_matches)} associated points",
+    )
+
+
+def associate_from_observations(obs_prev, obs_next, tri_prev, tri_next, **options) -> Association:
+    """:func:`associate` on two ``vision.observation.Observation`` s and their triangulations
+    (:class:`reconstruction.triangulation.Triangulation`); ``options`` are passed on."""
+    return associate(
+        tri_prev.views_used & tri_prev.valid[:, None], obs_prev.descriptors,
+        tri_next.views_used & tri_next.valid[:, None], obs_next.descriptors,
+        X_prev=tri_prev.X_W, X_next=tri_next.X_W, residual_prev=tri_prev.rms_reprojection_px,
+        residual_next=tri_next.rms_reprojection_px, **options,
+    )
