@@ -1,0 +1,385 @@
+"""Ray-cast renderer of a target on Open3D's ``RaycastingScene`` (CPU, headless).
+
+For one camera pose, target attitude and Sun direction, :func:`render` gives
+
+- an intensity image through a :class:`~vision.sensor.SensorModel` (and the noiseless radiance):
+  Lambertian diffuse term times the texture albedo, an optional Blinn–Phong specular term,
+  self-shadowing by occlusion rays towards the Sun, and darkness in Earth's shadow;
+- the ground truth of every pixel: z-depth (distance along the optical axis, *not* the range along
+  the ray), a target mask, the hit point in the target body frame, the triangle id, and whether the
+  point is sunlit.
+
+Rays are cast only through the region of interest (ROI): the projected bounding box of the target,
+widened by a margin and aligned to a 32-px grid (so SIFT's image pyramids of the crop and of the full
+image sample the same pixels); the result is placed in full-size arrays. Outside the ROI the image is
+the black level (zero signal: the default sensor's read noise is 0.13 DN there).
+
+Frames: the target's centre of mass is the origin of the Hill frame H (= world W); its attitude is
+``q_HT`` (``R_HT`` maps body to Hill components); the camera pose is ``T_CW``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from attitude.quaternion import check_quat, matrix_from_quat
+from vision.camera import PinholeCamera, check_pose
+from vision.sensor import SensorModel
+from vision.target import Target
+
+__all__ = ["RenderResult", "cast_body_points", "render", "roi_of_target", "STATUS_OK", "STATUS_EARTH_SHADOW",
+           "STATUS_OUTSIDE_FOV", "STATUS_BEHIND_CAMERA"]
+
+STATUS_OK = "ok"
+STATUS_EARTH_SHADOW = "target in Earth shadow"
+STATUS_OUTSIDE_FOV = "target outside field of view"
+STATUS_BEHIND_CAMERA = "target behind camera"
+
+_ROI_ALIGN_PX = 32
+
+
+@dataclass(frozen=True, eq=False)
+class RenderResult:
+    """A rendered view with its per-pixel ground truth (all arrays full image size ``(H, W)``).
+
+    Attributes
+    ----------
+    image : ndarray, (H, W), uint8 or uint16
+        Sensor image (digital numbers).
+    radiance : ndarray, (H, W), float32
+        Noiseless, unblurred radiance (1 = white Lambertian surface facing the full Sun).
+    depth_z_m : ndarray, (H, W), float32
+        z-depth of the visible surface along the optical axis, metres; NaN off the target.
+    mask : ndarray, (H, W), bool
+        True on target pixels.
+    X_T : ndarray, (H, W, 3), float32
+        Body-frame coordinates of the surface point seen at each pixel centre, metres; NaN off target.
+    triangle_id : ndarray, (H, W), int32
+        Index of the hit triangle; -1 off the target.
+    lit : ndarray, (H, W), bool
+        True where the surface point is sunlit (facing the Sun and not self-shadowed).
+    roi : tuple of int
+        ``(x0, y0, x1, y1)``: the rendered pixel columns ``x0 <= u < x1`` and rows ``y0 <= v < y1``.
+    status : str
+        ``"ok"``, ``"target in Earth shadow"``, ``"target outside field of view"`` or
+        ``"target behind camera"``.
+    camera : PinholeCamera
+    T_CW : ndarray, (4, 4)
+    exposure_s : float
+        Exposure time the sensor used, seconds (NaN when nothing was rendered).
+    """
+
+    image: np.ndarray
+    radiance: np.ndarray
+    depth_z_m: np.ndarray
+    mask: np.ndarray
+    X_T: np.ndarray
+    triangle_id: np.ndarray
+    lit: np.ndarray
+    roi: tuple[int, int, int, int]
+    status: str
+    camera: PinholeCamera
+    T_CW: np.ndarray
+    exposure_s: float = float("nan")
+
+    @property
+    def ok(self) -> bool:
+        return self.status == STATUS_OK
+
+    @property
+    def roi_slices(self) -> tuple[slice, slice]:
+        """``(rows, cols)`` slices of the ROI."""
+        x0, y0, x1, y1 = self.roi
+        return slice(y0, y1), slice(x0, x1)
+
+    def body_points_at(self, uv_px: ArrayLike, *, search_px: int = 2) -> np.ndarray:
+        """Body-frame ground truth ``(N, 3)`` at pixel coordinates ``uv_px`` (``(N, 2)``).
+
+        The nearest pixel's point; where that pixel is off the target (a keypoint on the silhouette),
+        the nearest target pixel within ``search_px`` pixels. NaN when there is none.
+        """
+        uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+        H, W = self.mask.shape
+        out = np.full((len(uv), 3), np.nan)
+        ui = np.rint(uv[:, 0]).astype(np.int64)
+        vi = np.rint(uv[:, 1]).astype(np.int64)
+        offs = sorted(((dx, dy) for dx in range(-search_px, search_px + 1)
+                       for dy in range(-search_px, search_px + 1)), key=lambda d: d[0] ** 2 + d[1] ** 2)
+        todo = np.ones(len(uv), dtype=bool)
+        for dx, dy in offs:
+            if not todo.any():
+                break
+            u, v = ui + dx, vi + dy
+            ok = todo & (u >= 0) & (u < W) & (v >= 0) & (v < H)
+            idx = np.nonzero(ok)[0]
+            hit = self.mask[v[idx], u[idx]]
+            idx = idx[hit]
+            out[idx] = self.X_T[v[idx], u[idx]]
+            todo[idx] = False
+        return out
+
+
+def _validate(camera, T_CW, target, q_HT, sun_H):
+    if not isinstance(camera, PinholeCamera):
+        raise ValueError(f"camera must be a PinholeCamera, got {type(camera).__name__}")
+    if not isinstance(target, Target):
+        raise ValueError(f"target must be a Target, got {type(target).__name__}")
+    T = check_pose(T_CW, name="T_CW")
+    if T.shape != (4, 4):
+        raise ValueError(f"T_CW must be one (4, 4) pose, got shape {T.shape}")
+    q = check_quat(q_HT, name="q_HT")
+    if q.shape != (4,):
+        raise ValueError(f"q_HT must have shape (4,), got {q.shape}")
+    s = np.asarray(sun_H, dtype=float)
+    if s.shape != (3,) or not np.all(np.isfinite(s)) or np.linalg.norm(s) == 0:
+        raise ValueError(f"sun_H must be a finite non-zero 3-vector, got {np.asarray(sun_H).tolist()}")
+    return T, q, s / np.linalg.norm(s)
+
+
+def _pose_in_body(T_CW: np.ndarray, R_HT: np.ndarray):
+    """Camera centre ``c_T`` and ``R_TC`` (camera → body) for a target at the origin of H."""
+    R_CW, t_CW = T_CW[:3, :3], T_CW[:3, 3]
+    c_H = -R_CW.T @ t_CW
+    R_TC = R_HT.T @ R_CW.T
+    return R_HT.T @ c_H, R_TC
+
+
+def roi_of_target(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLike, *,
+                  margin_px: int = 16, align_px: int = _ROI_ALIGN_PX) -> tuple[tuple[int, int, int, int], str]:
+    """Region of interest around the projected bounding box of the target.
+
+    Returns
+    -------
+    roi : tuple of int
+        ``(x0, y0, x1, y1)`` in pixels (half-open), clipped to the image; the full frame when part of
+        the box is behind the camera; ``(0, 0, 0, 0)`` when the target cannot be seen.
+    status : str
+        ``"ok"``, ``"target outside field of view"`` or ``"target behind camera"``.
+    """
+    T = np.asarray(T_CW, dtype=float)
+    R_HT = matrix_from_quat(np.asarray(q_HT, dtype=float))
+    X_C = (T[:3, :3] @ (R_HT @ target.bbox_corners_T.T)).T + T[:3, 3]
+    z = X_C[:, 2]
+    if np.all(z <= 0):
+        return (0, 0, 0, 0), STATUS_BEHIND_CAMERA
+    if np.any(z <= 1e-6):
+        return (0, 0, camera.width, camera.height), STATUS_OK
+    uv = camera.project(X_C)
+    x0 = int(np.floor(uv[:, 0].min())) - margin_px
+    y0 = int(np.floor(uv[:, 1].min())) - margin_px
+    x1 = int(np.ceil(uv[:, 0].max())) + margin_px + 1
+    y1 = int(np.ceil(uv[:, 1].max())) + margin_px + 1
+    x0 = max(0, (x0 // align_px) * align_px)
+    y0 = max(0, (y0 // align_px) * align_px)
+    x1, y1 = min(camera.width, x1), min(camera.height, y1)
+    if x1 <= x0 or y1 <= y0:
+        return (0, 0, 0, 0), STATUS_OUTSIDE_FOV
+    return (x0, y0, x1, y1), STATUS_OK
+
+
+def cast_body_points(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLike,
+                     uv_px: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """Exact surface points seen through sub-pixel image positions, by casting one ray each.
+
+    Parameters
+    ----------
+    camera, T_CW, target, q_HT :
+        As in :func:`render`.
+    uv_px : array_like, shape (N, 2)
+        Pixel coordinates.
+
+    Returns
+    -------
+    X_T : ndarray, shape (N, 3)
+        First surface point along each pixel's ray, body frame, metres (NaN where the ray misses).
+    depth_z_m : ndarray, shape (N,)
+        Its z-depth (NaN where the ray misses).
+    """
+    import open3d as o3d
+
+    T = check_pose(T_CW, name="T_CW")
+    R_HT = matrix_from_quat(check_quat(q_HT, name="q_HT"))
+    uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+    c_T, R_TC = _pose_in_body(T, R_HT)
+    rays = np.empty((len(uv), 6), dtype=np.float32)
+    rays[:, :3] = c_T
+    rays[:, 3:] = camera.ray_directions(uv) @ R_TC.T
+    hits = target.scene.cast_rays(o3d.core.Tensor(rays))
+    t = hits["t_hit"].numpy()
+    hit = np.isfinite(t)
+    X = np.full((len(uv), 3), np.nan)
+    z = np.full(len(uv), np.nan)
+    if hit.any():
+        X[hit] = target.point_on_triangles(hits["primitive_ids"].numpy().astype(np.int64)[hit],
+                                           hits["primitive_uvs"].numpy()[hit].astype(np.float64))
+        z[hit] = ((X[hit] - c_T) @ R_TC)[:, 2]
+    return X, z
+
+
+def _mip_level(tex: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Mip level per pixel from screen-space texel derivatives (``tex`` (h, w, 2), NaN off target).
+
+    Per axis the smaller of the forward and backward differences is used, so texture seams and
+    silhouettes do not blur their neighbours; ``level = log2(max(|∂s/∂u|, |∂s/∂v|))``.
+    """
+    big = np.float32(1e6)
+
+    def deriv(axis: int) -> np.ndarray:
+        d = np.diff(tex, axis=axis)
+        n = np.sqrt((d ** 2).sum(-1))
+        n = np.where(np.isfinite(n), n, big)
+        pad_shape = list(n.shape)
+        pad_shape[axis] = 1
+        pad = np.full(pad_shape, big, dtype=n.dtype)
+        fwd = np.concatenate([n, pad], axis=axis)
+        bwd = np.concatenate([pad, n], axis=axis)
+        return np.minimum(fwd, bwd)
+
+    rho = np.maximum(deriv(0), deriv(1))
+    rho = np.where(rho >= big, 1.0, rho)
+    with np.errstate(divide="ignore"):
+        level = np.log2(np.maximum(rho, 1.0))
+    return np.where(valid, level, 0.0).astype(np.float32)
+
+
+def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLike, sun_H: ArrayLike,
+           *, rng: np.random.Generator | int | None = None, sensor: SensorModel | None = None,
+           sun_visible_fraction: float = 1.0, ambient: float = 0.0, specular: bool = True,
+           shadows: bool = True, roi: bool = True, roi_margin_px: int = 16) -> RenderResult:
+    """Render the target seen by one camera, with per-pixel ground truth.
+
+    Parameters
+    ----------
+    camera : PinholeCamera
+        Intrinsics.
+    T_CW : array_like, shape (4, 4)
+        Camera pose, camera-from-world (world = Hill frame H).
+    target : Target
+        Target model (body frame T, origin at the centre of mass = origin of H).
+    q_HT : array_like, shape (4,)
+        Target attitude, Hamilton scalar-first, body → Hill.
+    sun_H : array_like, shape (3,)
+        Direction from the target to the Sun, Hill components (normalised here).
+    rng : Generator, int or None
+        Random source of the sensor noise.
+    sensor : SensorModel, optional
+        Sensor chain (default ``SensorModel()``).
+    sun_visible_fraction : float
+        Fraction of the solar disc seen from the target: 1 in sunlight, 0 in Earth's umbra (the image
+        is then dark and ``status`` is ``"target in Earth shadow"``), in between in the penumbra.
+    ambient : float
+        Diffuse ambient illumination (e.g. Earthshine) in units of the direct Sun, >= 0.
+    specular, shadows : bool
+        Include the Blinn–Phong specular term and the self-shadowing occlusion rays.
+    roi : bool
+        Ray-cast only the region of interest (True) or the full frame (False).
+    roi_margin_px : int
+        Margin around the projected bounding box, pixels.
+
+    Returns
+    -------
+    RenderResult
+    """
+    T, q, s_H = _validate(camera, T_CW, target, q_HT, sun_H)
+    f_sun = float(sun_visible_fraction)
+    if not 0.0 <= f_sun <= 1.0:
+        raise ValueError(f"sun_visible_fraction must be in [0, 1], got {sun_visible_fraction!r}")
+    if not (np.isfinite(ambient) and ambient >= 0):
+        raise ValueError(f"ambient must be >= 0, got {ambient!r}")
+    sensor = SensorModel() if sensor is None else sensor
+    rng = np.random.default_rng(rng)
+    H, W = camera.height, camera.width
+    image = np.zeros((H, W), dtype=sensor.dtype)
+    radiance = np.zeros((H, W), dtype=np.float32)
+    depth = np.full((H, W), np.nan, dtype=np.float32)
+    mask = np.zeros((H, W), dtype=bool)
+    X_img = np.full((H, W, 3), np.nan, dtype=np.float32)
+    tri_img = np.full((H, W), -1, dtype=np.int32)
+    lit_img = np.zeros((H, W), dtype=bool)
+
+    R_HT = matrix_from_quat(q)
+    if roi:
+        box, status = roi_of_target(camera, T, target, q, margin_px=int(roi_margin_px))
+    else:
+        box, status = (0, 0, W, H), STATUS_OK
+        _, st = roi_of_target(camera, T, target, q, margin_px=int(roi_margin_px))
+        status = st if st == STATUS_BEHIND_CAMERA else STATUS_OK
+
+    def result(st: str, exposure_s: float = float("nan")) -> RenderResult:
+        return RenderResult(image, radiance, depth, mask, X_img, tri_img, lit_img, box, st, camera, T,
+                            exposure_s)
+
+    if status != STATUS_OK:
+        return result(status)
+    x0, y0, x1, y1 = box
+    h, w = y1 - y0, x1 - x0
+    c_T, R_TC = _pose_in_body(T, R_HT)
+    uu, vv = np.meshgrid(np.arange(x0, x1, dtype=np.float64), np.arange(y0, y1, dtype=np.float64))
+    d_C = np.stack([(uu - camera.cx) / camera.fx, (vv - camera.cy) / camera.fy, np.ones_like(uu)], -1)
+    d_T = d_C @ R_TC.T
+    rays = np.empty((h, w, 6), dtype=np.float32)
+    rays[..., :3] = c_T
+    rays[..., 3:] = d_T
+
+    import open3d as o3d
+
+    scene = target.scene
+    hits = scene.cast_rays(o3d.core.Tensor(rays))
+    t_hit = hits["t_hit"].numpy()
+    hit = np.isfinite(t_hit)
+    if not hit.any():
+        return result(STATUS_OUTSIDE_FOV)
+    tid = hits["primitive_ids"].numpy().astype(np.int64)[hit]
+    bary = hits["primitive_uvs"].numpy()[hit].astype(np.float64)
+    X = target.point_on_triangles(tid, bary)                     # (N, 3) body frame, exact on face
+    # z-depth: the ray direction has unit z in the camera frame, so t_hit is the z-depth
+    z = ((X - c_T) @ R_TC)[:, 2]
+    n = target.triangle_normals_T[tid]
+    v = c_T - X
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    n = np.where((np.sum(n * v, axis=1) < 0)[:, None], -n, n)   # two-sided: face the camera
+    # texture with mip-mapping from screen-space derivatives
+    tex = np.full((h, w, 2), np.nan, dtype=np.float32)
+    tex[hit] = target.texture_coords(tid, bary)
+    level = _mip_level(tex, hit)[hit]
+    albedo = target.sample_albedo(tex[hit], level, tid).astype(np.float64)
+    # direct sunlight
+    s_T = R_HT.T @ s_H
+    cos_i = n @ s_T
+    lit = cos_i > 0.0
+    if shadows and lit.any():
+        eps = max(1e-3, 1e-4 * target.radius_m)
+        idx = np.nonzero(lit)[0]
+        sray = np.empty((len(idx), 6), dtype=np.float32)
+        sray[:, :3] = X[idx] + eps * n[idx]
+        sray[:, 3:] = s_T
+        occluded = scene.test_occlusions(o3d.core.Tensor(sray)).numpy().astype(bool)
+        lit[idx[occluded]] = False
+    L = albedo * np.maximum(cos_i, 0.0) * lit
+    if specular:
+        ks = np.array([m.specular for m in target.materials])[target.triangle_material[tid]]
+        ns = np.array([m.shininess for m in target.materials])[target.triangle_material[tid]]
+        hvec = s_T + v
+        hvec /= np.maximum(np.linalg.norm(hvec, axis=1, keepdims=True), 1e-12)
+        L = L + ks * np.maximum(np.sum(n * hvec, axis=1), 0.0) ** ns * lit
+    L = f_sun * L + ambient * albedo
+    # place into the full-size images
+    rs = (slice(y0, y1), slice(x0, x1))
+    rad_roi = np.zeros((h, w), dtype=np.float32)
+    rad_roi[hit] = L
+    radiance[rs] = rad_roi
+    sub = depth[rs]
+    sub[hit] = z
+    mask[rs] = hit
+    subX = X_img[rs]
+    subX[hit] = X
+    subT = tri_img[rs]
+    subT[hit] = tid
+    subL = lit_img[rs]
+    subL[hit] = lit & (f_sun > 0)
+    exposure = sensor.exposure_for(rad_roi)
+    image[rs] = sensor.apply(rad_roi, rng=rng, exposure_s=exposure)
+    return result(STATUS_EARTH_SHADOW if f_sun == 0.0 else STATUS_OK, exposure)
