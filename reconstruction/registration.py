@@ -132,6 +132,9 @@ def _rotation_from_correlation(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     fraction of the cost of a batched 3×3 SVD.  Elements whose eigenvector is ill-determined fall
     back to the SVD.  Returns ``(R, collinear)``, ``collinear`` flagging rank(S) ≤ 1.
     """
+    bad = ~np.all(np.isfinite(S), axis=(-2, -1))
+    if np.any(bad):
+        S = np.where(bad[..., None, None], 0.0, S)
     sxx, sxy, sxz = S[..., 0, 0], S[..., 0, 1], S[..., 0, 2]
     syx, syy, syz = S[..., 1, 0], S[..., 1, 1], S[..., 1, 2]
     szx, szy, szz = S[..., 2, 0], S[..., 2, 1], S[..., 2, 2]
@@ -194,6 +197,9 @@ def _rotation_from_correlation(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if np.any(weak & np.isfinite(lam)):
         sel = weak & np.isfinite(lam)
         R[sel] = proper_rotation_from_svd(np.swapaxes(S[sel], -1, -2))
+    if np.any(bad):
+        R[bad] = np.nan
+        collinear = collinear | bad
     return R, collinear
 
 

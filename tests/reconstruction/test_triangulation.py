@@ -13,7 +13,6 @@ from reconstruction.accuracy import point_covariance
 from reconstruction.triangulation import (
     STATUS_BEHIND_CAMERA,
     STATUS_DEGENERATE,
-    STATUS_OK,
     STATUS_REPROJECTION,
     STATUS_TOO_FEW_VIEWS,
     triangulate,

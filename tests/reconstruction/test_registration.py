@@ -1,0 +1,285 @@
+"""Rigid registration: closed form vs SVD/scipy/pycolmap, RANSAC, ML with covariance, Open3D."""
+
+from __future__ import annotations
+
+import numpy as np
+import pycolmap
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+from scipy.stats import chi2
+
+from reconstruction._geometry import proper_rotation_from_svd, rotvec_from_rotation
+from reconstruction._synthetic import fy1_points, observe, ring_cameras
+from reconstruction.accuracy import attitude_increment_crlb
+from reconstruction.registration import (
+    fit_rigid,
+    fit_rigid_ml,
+    fit_rigid_robust,
+    register_fpfh_ransac,
+    register_icp,
+)
+from reconstruction.triangulation import triangulate
+
+
+def _random_motion(rng, batch=()):
+    R = Rotation.random(int(np.prod(batch, dtype=int)) or 1, random_state=rng).as_matrix()
+    R = R.reshape(batch + (3, 3)) if batch else R[0]
+    t = rng.uniform(-10, 10, batch + (3,))
+    return R, t
+
+
+def _apply(R, t, P):
+    return P @ np.swapaxes(R, -1, -2) + t[..., None, :]
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 60),
+       scale=st.floats(1e-2, 1e3), offset=st.floats(-1e5, 1e5))
+def test_exact_motion_is_recovered_for_any_rotation_scale_and_offset(seed, n, scale, offset):
+    rng = np.random.default_rng(seed)
+    R, t = _random_motion(rng)
+    P = offset + scale * rng.standard_normal((n, 3))
+    fit = fit_rigid(P, _apply(R, t, P))
+    assert fit.ok
+    np.testing.assert_allclose(fit.R, R, atol=1e-8)
+    np.testing.assert_allclose(fit.t, t, atol=1e-8 * (1 + abs(offset) + scale))
+    assert abs(np.linalg.det(fit.R) - 1.0) < 1e-12
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 40), noise=st.floats(0.0, 2.0))
+def test_weighted_fit_equals_the_svd_solution_of_000_eq_37(seed, n, noise):
+    """Horn's quaternion route gives U diag(1, 1, det UVᵀ) Vᵀ (FLAG P000-10), reflections too."""
+    rng = np.random.default_rng(seed)
+    P = rng.standard_normal((n, 3))
+    Q = rng.standard_normal((n, 3)) * noise + P @ np.diag([1.0, 1.0, rng.choice([-1.0, 1.0])])
+    w = rng.uniform(0.1, 2.0, n)
+    fit = fit_rigid(P, Q, w)
+    pb, qb = w @ P / w.sum(), w @ Q / w.sum()
+    B = ((Q - qb) * w[:, None]).T @ (P - pb)
+    R_svd = proper_rotation_from_svd(B)
+    _, s, _ = np.linalg.svd(B)
+    if s[1] > 1e-6 * s[0] and s[1] - s[2] > 1e-6 * s[0]:  # unique optimum
+        np.testing.assert_allclose(fit.R, R_svd, atol=1e-7)
+    # the attained objective tr(Rᵀ B) is the optimum in every case
+    assert np.trace(fit.R.T @ B) >= np.trace(R_svd.T @ B) - 1e-9 * s[0]
+    assert abs(np.linalg.det(fit.R) - 1.0) < 1e-10
+
+
+def test_weighted_fit_matches_scipy_align_vectors():
+    rng = np.random.default_rng(1)
+    P = rng.standard_normal((30, 3))
+    R, t = _random_motion(rng)
+    Q = _apply(R, t, P) + 0.1 * rng.standard_normal((30, 3))
+    w = rng.uniform(0.1, 3.0, 30)
+    fit = fit_rigid(P, Q, w)
+    pb, qb = w @ P / w.sum(), w @ Q / w.sum()
+    rot, _ = Rotation.align_vectors(Q - qb, P - pb, weights=w)
+    np.testing.assert_allclose(fit.R, rot.as_matrix(), atol=1e-9)
+    np.testing.assert_allclose(fit.t, qb - fit.R @ pb, atol=1e-9)
+
+
+def test_batched_fit_matches_a_loop_of_pycolmap_estimate_rigid3d():
+    rng = np.random.default_rng(2)
+    R, t = _random_motion(rng, (50,))
+    P = rng.uniform(-3, 3, (50, 200, 3))
+    Q = _apply(R, t, P) + 0.01 * rng.standard_normal(P.shape)
+    fit = fit_rigid(P, Q)
+    assert fit.R.shape == (50, 3, 3) and np.all(fit.ok)
+    for b in range(50):
+        ref = pycolmap.estimate_rigid3d(P[b], Q[b])
+        np.testing.assert_allclose(fit.R[b], ref.rotation.matrix(), atol=1e-10)
+        np.testing.assert_allclose(fit.t[b], ref.translation, atol=1e-9)
+    res = Q - _apply(fit.R, fit.t, P)
+    np.testing.assert_allclose(fit.rms_m, np.sqrt(np.mean(np.sum(res**2, -1), -1)), rtol=1e-10)
+
+
+def test_nan_rows_are_ignored_like_absent_points():
+    rng = np.random.default_rng(3)
+    R, t = _random_motion(rng)
+    P = rng.standard_normal((20, 3))
+    Q = _apply(R, t, P)
+    P2 = P.copy()
+    P2[[2, 5]] = np.nan
+    Q2 = Q.copy()
+    Q2[7] = np.nan
+    fit = fit_rigid(P2, Q2)
+    assert fit.ok and fit.n_inliers == 17
+    np.testing.assert_allclose(fit.R, R, atol=1e-10)
+    assert not fit.inliers[2] and not fit.inliers[7]
+
+
+def test_degenerate_inputs_report_failure_inside_a_batch():
+    rng = np.random.default_rng(4)
+    P = rng.standard_normal((3, 10, 3))
+    P[1, 2:] = np.nan  # two usable points
+    P[2] = np.linspace(0, 1, 10)[:, None] * np.array([1.0, 2.0, 3.0])  # collinear
+    Q = P + 1.0
+    fit = fit_rigid(P, Q)
+    assert list(fit.ok) == [True, False, False]
+    assert fit.failure_reason[1] == "fewer than 3 usable points"
+    assert fit.failure_reason[2] == "points are collinear"
+    assert np.all(np.isnan(fit.R[1:])) and np.all(np.isnan(fit.t[1:]))
+    rob = fit_rigid_robust(P, Q, threshold_m=0.1, rng=0)
+    assert list(rob.ok) == [True, False, False]
+    cov = np.broadcast_to(1e-4 * np.eye(3), P.shape + (3,))
+    ml = fit_rigid_ml(P, Q, cov, cov, rng=0)
+    assert list(ml.ok) == [True, False, False]
+    assert np.all(np.isnan(ml.cov[1:]))
+
+
+def test_bad_arguments_raise_value_error_naming_them():
+    P = np.zeros((5, 3))
+    with pytest.raises(ValueError, match="P"):
+        fit_rigid(np.zeros((5, 2)), P)
+    with pytest.raises(ValueError, match="weights"):
+        fit_rigid(P, P, -np.ones(5))
+    with pytest.raises(ValueError, match="threshold_m"):
+        fit_rigid_robust(P, P)
+    with pytest.raises(ValueError, match="cov_P, cov_Q"):
+        fit_rigid_robust(P, P, cov_P=np.zeros((5, 3, 3)))
+    with pytest.raises(ValueError, match="gate_probability"):
+        fit_rigid_ml(P, P, np.zeros((5, 3, 3)), np.zeros((5, 3, 3)), gate_probability=1.5)
+
+
+def test_ransac_recovers_motion_with_40_percent_gross_outliers_and_flags_them():
+    rng = np.random.default_rng(5)
+    R, t = _random_motion(rng, (20,))
+    P = rng.uniform(-2, 2, (20, 100, 3))
+    Q = _apply(R, t, P) + 0.005 * rng.standard_normal(P.shape)
+    out = rng.random((20, 100)) < 0.4
+    Q[out] = rng.uniform(-12, 12, (out.sum(), 3))
+    fit = fit_rigid_robust(P, Q, threshold_m=0.03, rng=6)
+    assert np.all(fit.ok)
+    ang = np.linalg.norm(rotvec_from_rotation(R @ np.swapaxes(fit.R, -1, -2)), axis=-1)
+    assert np.max(ang) < 2e-3
+    assert np.mean(fit.inliers[out]) < 0.01 and np.mean(fit.inliers[~out]) > 0.99
+    again = fit_rigid_robust(P, Q, threshold_m=0.03, rng=6)
+    np.testing.assert_array_equal(again.inliers, fit.inliers)
+
+
+def _scene(n_views, n_trials, rng, n_points=200):
+    K, T = ring_cameras(n_views, distance_m=50.0, axis_angle_deg=10.0)
+    X = fy1_points(n_points, rng, batch=(n_trials,)) @ np.swapaxes(
+        Rotation.random(n_trials, random_state=rng).as_matrix(), -1, -2)
+    dR = Rotation.from_rotvec(np.radians(0.866) * Rotation.random(
+        n_trials, random_state=rng).apply([1.0, 0, 0])).as_matrix()
+    X1 = X @ np.swapaxes(dR, -1, -2)
+    tri0 = triangulate(observe(X, K, T, 0.5, rng), K, T, pixel_sigma_px=0.5)
+    tri1 = triangulate(observe(X1, K, T, 0.5, rng), K, T, pixel_sigma_px=0.5)
+    return K, T, X, dR, tri0, tri1
+
+
+@pytest.fixture(scope="module")
+def scene3():
+    return _scene(3, 150, np.random.default_rng(7))
+
+
+def _rms_deg(dR, R):
+    e = rotvec_from_rotation(dR @ np.swapaxes(R, -1, -2))
+    return np.degrees(np.sqrt(np.mean(np.sum(e * e, -1)))), e
+
+
+def test_ml_fit_reaches_the_cramer_rao_bound_and_scalar_weights_do_not(scene3):
+    """150 trials: the RMS of ‖δθ‖ (3 dof each) has a relative σ of about 1/√(2·450) ≈ 3.3 %."""
+    K, T, X, dR, tri0, tri1 = scene3
+    ml = fit_rigid_ml(tri0.X_W, tri1.X_W, tri0.cov_W, tri1.cov_W, robust=False)
+    ml_rms, _ = _rms_deg(dR, ml.R)
+    bound = attitude_increment_crlb(X, K, T, pixel_sigma_px=0.5, R_delta=dR)
+    crlb_rms = np.degrees(np.sqrt(np.mean(bound.rms_angle_rad**2)))
+    assert 0.90 < ml_rms / crlb_rms < 1.10
+    sc = fit_rigid(tri0.X_W, tri1.X_W, tri0.weight * tri1.weight)
+    sc_rms, _ = _rms_deg(dR, sc.R)
+    assert sc_rms > 3.0 * ml_rms
+
+
+def test_ml_covariance_is_consistent_with_its_errors(scene3):
+    """Mean 6-dof NEES of 150 trials inside the 99 % band of χ²(900)/150."""
+    K, T, X, dR, tri0, tri1 = scene3
+    ml = fit_rigid_ml(tri0.X_W, tri1.X_W, tri0.cov_W, tri1.cov_W, robust=False)
+    _, e = _rms_deg(dR, ml.R)
+    d = np.concatenate([e, -ml.t], -1)
+    nees = np.einsum("...i,...ij,...j->...", d, np.linalg.inv(ml.cov), d)
+    lo, hi = chi2.ppf([0.005, 0.995], 6 * 150) / 150
+    assert lo < np.mean(nees) < hi
+    # the bound evaluated at the estimate is the returned covariance
+    np.testing.assert_allclose(ml.rotation_sigma_rad,
+                               attitude_increment_crlb(X, K, T, pixel_sigma_px=0.5,
+                                                       R_delta=dR).rms_angle_rad, rtol=0.05)
+
+
+def test_robust_ml_with_30_percent_added_false_matches_stays_within_20_percent(scene3):
+    K, T, X, dR, tri0, tri1 = scene3
+    rng = np.random.default_rng(8)
+    n_out = 86  # 30 % of 286 correspondences
+    i = rng.integers(0, 200, (150, n_out))
+    j = (i + rng.integers(1, 200, (150, n_out))) % 200
+    tk = np.take_along_axis
+    P = np.concatenate([tri0.X_W, tk(tri0.X_W, i[..., None], 1)], 1)
+    Q = np.concatenate([tri1.X_W, tk(tri1.X_W, j[..., None], 1)], 1)
+    cP = np.concatenate([tri0.cov_W, tk(tri0.cov_W, i[..., None, None], 1)], 1)
+    cQ = np.concatenate([tri1.cov_W, tk(tri1.cov_W, j[..., None, None], 1)], 1)
+    clean = fit_rigid_ml(tri0.X_W, tri1.X_W, tri0.cov_W, tri1.cov_W, robust=False)
+    rob = fit_rigid_ml(P, Q, cP, cQ, robust=True, rng=9)
+    assert np.all(rob.ok)
+    r_clean, _ = _rms_deg(dR, clean.R)
+    r_rob, _ = _rms_deg(dR, rob.R)
+    assert r_rob < 1.2 * r_clean
+    assert np.mean(rob.inliers[:, 200:]) < 0.01  # false matches rejected
+    assert np.mean(rob.inliers[:, :200]) > 0.98  # true ones kept (gate at 99.73 %)
+
+
+def test_ml_with_isotropic_equal_covariances_equals_kabsch():
+    rng = np.random.default_rng(10)
+    R, t = _random_motion(rng)
+    P = rng.standard_normal((40, 3))
+    Q = _apply(R, t, P) + 0.01 * rng.standard_normal((40, 3))
+    cov = np.broadcast_to(1e-4 * np.eye(3), (40, 3, 3))
+    ml = fit_rigid_ml(P, Q, cov, cov, robust=False)
+    kb = fit_rigid(P, Q)
+    np.testing.assert_allclose(ml.R, kb.R, atol=1e-10)
+    np.testing.assert_allclose(ml.t, kb.t, atol=1e-10)
+    # isotropic covariance σ²(1+1): rotation covariance (Σ [R p̃×]ᵀ[R p̃×] / 2σ²)⁻¹, p̃ centred
+    Pc = (P - P.mean(0)) @ ml.R.T
+    Hrot = sum((np.cross(np.eye(3), p).T @ np.cross(np.eye(3), p)) for p in Pc) / 2e-4
+    np.testing.assert_allclose(ml.cov[:3, :3], np.linalg.inv(Hrot), rtol=1e-6)
+
+
+def _box_cloud(rng, n=3000):
+    """Dense samples on the surface of an asymmetric box (3 × 2 × 1 m)."""
+    half = np.array([1.5, 1.0, 0.5])
+    face = rng.integers(0, 6, n)
+    pts = rng.uniform(-1, 1, (n, 3)) * half
+    ax = face // 2
+    pts[np.arange(n), ax] = np.where(face % 2 == 0, 1.0, -1.0) * half[ax]
+    return pts
+
+
+def test_open3d_icp_refines_a_small_unknown_correspondence_motion():
+    rng = np.random.default_rng(11)
+    P = _box_cloud(rng)
+    R = Rotation.from_rotvec([0.02, -0.03, 0.05]).as_matrix()
+    t = np.array([0.05, -0.02, 0.03])
+    Q = _apply(R, t, _box_cloud(np.random.default_rng(12)))  # different samples of the surface
+    fit = register_icp(P, Q, max_correspondence_m=0.3)
+    assert fit.ok and fit.method == "icp"
+    ang = np.linalg.norm(rotvec_from_rotation(R @ fit.R.T))
+    assert ang < np.radians(0.5)
+    assert np.linalg.norm(fit.t - t) < 0.03
+
+
+def test_open3d_fpfh_ransac_recovers_a_large_rotation_without_correspondences():
+    rng = np.random.default_rng(13)
+    P = _box_cloud(rng, 6000)
+    R = Rotation.from_rotvec([0.6, -1.1, 0.8]).as_matrix()
+    t = np.array([2.0, -1.0, 0.5])
+    Q = _apply(R, t, P[rng.permutation(len(P))]) + 0.002 * rng.standard_normal(P.shape)
+    fit = register_fpfh_ransac(P, Q, voxel_size_m=0.1, rng=14)
+    assert fit.ok and fit.method == "fpfh_ransac"
+    ang = np.linalg.norm(rotvec_from_rotation(R @ fit.R.T))
+    assert ang < np.radians(1.0)
+    assert np.linalg.norm(fit.t - t) < 0.05
+    few = register_icp(P[:2], Q, max_correspondence_m=0.3)
+    assert not few.ok and "fewer than 3" in few.failure_reason
