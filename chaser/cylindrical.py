@@ -561,7 +561,7 @@ def intersect_planes(
     alpha_beta_rad: ArrayLike,
     *,
     angle_sigma_rad: float | None = None,
-    min_independence: float = 1e-3,
+    min_independence: float = 1e-6,
     strict: bool = False,
 ) -> PlaneIntersection:
     """Least-squares intersection of the planes of n cameras (004 eq 1–4, SEEDS_SPEC §4.3.1).
@@ -571,8 +571,11 @@ def intersect_planes(
     normalised so that the residual is the distance to the plane; rows are weighted by the inverse
     range to the camera (a second pass), so the residuals are angles.  NaN angles are dropped
     channels (overlapped spots, 004 §3.2 step 8).  A point needs at least three planes whose normals
-    span 3-D (``independence`` ≥ ``min_independence``); otherwise it is a failure (NaN point and a
-    reason), or a ``ValueError`` when ``strict``.
+    span 3-D (``independence`` ≥ ``min_independence``, a numerical-rank test); otherwise it is a
+    failure (NaN point and a reason), or a ``ValueError`` when ``strict``.  Three planes can be
+    independent yet weak: for two cameras side by side, dropping an α channel leaves the two β planes,
+    which both nearly contain the baseline, so the depth is poorly fixed (``independence`` ~ 1e-3);
+    ``covariance_m2`` shows it.
 
     Parameters
     ----------
