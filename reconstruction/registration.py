@@ -619,7 +619,9 @@ def fit_rigid_ml(P, Q, cov_P, cov_Q, *, robust: bool = True, R0=None, t0=None,
         reason = np.full(B, "", dtype=object)
         start_ok = np.ones(B, bool)
     elif robust:
-        start = fit_rigid_robust(Pf.reshape(P.shape), Qf.reshape(Q.shape), cov_P=cPf, cov_Q=cQf,
+        start = fit_rigid_robust(Pf.reshape(P.shape), Qf.reshape(Q.shape),
+                                 cov_P=cPf.reshape(P.shape + (3,)),
+                                 cov_Q=cQf.reshape(P.shape + (3,)),
                                  gate_probability=gate_probability,
                                  max_iterations=ransac_iterations, rng=rng)
         R = np.asarray(start.R).reshape(-1, 3, 3)

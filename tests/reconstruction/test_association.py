@@ -1,0 +1,122 @@
+"""Inter-frame association: primary/auxiliary consistency, eq (9) weights, de-duplication."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from reconstruction._synthetic import fy1_points, observe, ring_cameras
+from reconstruction.association import (
+    associate,
+    associate_from_observations,
+    camera_weights_from_counts,
+)
+from reconstruction.registration import fit_rigid_ml
+from reconstruction.triangulation import triangulate
+
+
+def _two_epochs(rng, M=150, n=3, D=64, noise=0.05, visible=0.9):
+    """Track descriptors at t and (shuffled, noisy) at t + Δt; ``truth[i]`` = index at t + Δt."""
+    desc = rng.standard_normal((M, D)).astype(np.float32)
+    perm = rng.permutation(M)  # row k at t+Δt is track perm[k]
+    truth = np.argsort(perm)
+    vp = rng.random((M, n)) < visible
+    vn = (rng.random((M, n)) < visible)[perm]
+    dn = (desc + noise * rng.standard_normal((M, D)).astype(np.float32))[perm]
+    return desc, vp, dn, vn, truth
+
+
+def test_matches_recover_the_true_track_correspondence():
+    rng = np.random.default_rng(0)
+    desc, vp, dn, vn, truth = _two_epochs(rng)
+    a = associate(vp, desc, vn, dn)
+    assert a.ok and len(a.idx_prev) > 140
+    np.testing.assert_array_equal(truth[a.idx_prev], a.idx_next)
+
+
+def test_camera_weights_follow_eq_9_and_sum_to_one():
+    np.testing.assert_allclose(camera_weights_from_counts([10, 0, 5]), [11 / 18, 1 / 18, 6 / 18])
+    rng = np.random.default_rng(1)
+    desc, vp, dn, vn, _ = _two_epochs(rng)
+    vp[:, 2] &= rng.random(len(vp)) < 0.3  # camera 2 sees few tracks
+    a = associate(vp, desc, vn, dn)
+    assert a.camera_weights.sum() == pytest.approx(1.0)
+    np.testing.assert_allclose(a.camera_weights, (1 + a.n_per_primary) / (3 + a.n_per_primary.sum()))
+    assert a.camera_weights[2] < min(a.camera_weights[:2])
+
+
+def test_auxiliary_view_disagreement_rejects_a_primary_match():
+    """Per-view descriptors: in view 1 track 0 looks like track 1 — the match found with view 0 as
+    primary is then inconsistent in the auxiliary view 1 and dropped."""
+    rng = np.random.default_rng(2)
+    M, n, D = 40, 2, 32
+    base = rng.standard_normal((M, D)).astype(np.float32)
+    dp = np.repeat(base[:, None], n, 1)
+    dn = dp + 0.01 * rng.standard_normal(dp.shape).astype(np.float32)
+    dn[1, 1] = dp[0, 1] + 0.001  # at t+Δt, in view 1, track 1 takes track 0's appearance
+    dn[0, 1] = rng.standard_normal(D)
+    views = np.ones((M, n), bool)
+    a = associate(views, dp, views, dn)
+    assert 0 not in a.idx_prev  # view 0 says 0↔0, view 1 says 0↔1: inconsistent
+    assert np.all(a.idx_prev == a.idx_next)
+    # with the same descriptors in every view (one per track) the match is kept
+    b = associate(views, dp[:, 0], views, dn[:, 0])
+    assert 0 in b.idx_prev
+
+
+def test_near_duplicate_correspondences_are_removed_keeping_the_smaller_residual():
+    rng = np.random.default_rng(3)
+    M = 30
+    desc = rng.standard_normal((M, 16)).astype(np.float32)
+    X = rng.uniform(-2, 2, (M, 3))
+    X[1] = X[0] + 0.01  # track 1 duplicates track 0 at both epochs
+    X[3] = X[2] + 0.01  # track 3 is near track 2 at t only
+    Xn = X + np.array([0.1, 0.0, 0.0])
+    Xn[3] = X[3] + 1.0
+    res = np.full(M, 0.3)
+    res[0] = 0.9  # track 0 fits worse than its duplicate 1
+    views = np.ones((M, 2), bool)
+    a = associate(views, desc, views, desc + 0.01, X_prev=X, X_next=Xn, residual_prev=res,
+                  residual_next=res, duplicate_distance_m=0.05)
+    assert a.n_duplicates_removed == 1
+    assert 0 not in a.idx_prev and {1, 2, 3} <= set(a.idx_prev.tolist())
+
+
+def test_too_few_matches_is_a_reported_failure():
+    rng = np.random.default_rng(4)
+    views = np.ones((5, 2), bool)
+    a = associate(views, rng.standard_normal((5, 8)), views, rng.standard_normal((5, 8)))
+    assert not a.ok and a.failure_reason == "fewer than 3 associated points"
+    with pytest.raises(ValueError, match="descriptors_next"):
+        associate(views, np.zeros((5, 8)), views, np.zeros((5, 9)))
+    with pytest.raises(ValueError, match="views_next"):
+        associate(views, np.zeros((5, 8)), np.ones((5, 3), bool), np.zeros((5, 8)))
+
+
+def test_observation_pipeline_associates_and_registers_two_epochs():
+    """vision Observation → triangulate → associate → ML registration recovers the increment."""
+    from scipy.spatial.transform import Rotation
+
+    from vision.observation import Observation
+
+    rng = np.random.default_rng(5)
+    K, T = ring_cameras(3, distance_m=50.0, axis_angle_deg=10.0)
+    X_T = fy1_points(200, rng)
+    dR = Rotation.from_rotvec(np.radians([0.5, 0.5, 0.5])).as_matrix()
+    desc = rng.standard_normal((200, 64)).astype(np.float32)
+    obs = []
+    for k, R in enumerate((np.eye(3), dR)):
+        order = rng.permutation(200) if k else np.arange(200)
+        X = (X_T @ R.T)[order]
+        obs.append(Observation(
+            uv_px=observe(X, K, T, 0.5, rng), K=K, T_CW=T, image_size=(1024, 1024),
+            descriptors=desc[order] + 0.05 * rng.standard_normal((200, 64)).astype(np.float32),
+            pixel_sigma_px=0.5, feature_id=order, X_T_true=X_T[order]))
+    tri = [triangulate(o.uv_px, o.K, o.T_CW, pixel_sigma_px=o.pixel_sigma_px) for o in obs]
+    a = associate_from_observations(obs[0], obs[1], tri[0], tri[1])
+    assert a.ok
+    np.testing.assert_array_equal(obs[0].feature_id[a.idx_prev], obs[1].feature_id[a.idx_next])
+    fit = fit_rigid_ml(tri[0].X_W[a.idx_prev], tri[1].X_W[a.idx_next], tri[0].cov_W[a.idx_prev],
+                       tri[1].cov_W[a.idx_next], rng=6)
+    err = np.linalg.norm(Rotation.from_matrix(dR @ fit.R.T).as_rotvec())
+    assert err < 5 * fit.rotation_sigma_rad
