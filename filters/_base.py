@@ -228,14 +228,19 @@ class AttitudeFilter:
     def _gated_update(self, P, r, H, R, valid, G=None):
         """Batched Kalman update with chi-square gating.
 
-        ``r (M, m)`` innovation, ``H (M, m, n)``, ``R (M, m, m)``; ``G (M, 3, m)`` projects a
-        4-component quaternion innovation onto its 3 rotational degrees of freedom for the gate.
+        ``r (M, m)`` innovation, ``R (M, m, m)``; ``H (M, m, n)``, or ``None`` for ``H = [I_m 0]``
+        (the absolute-attitude measurements); ``G (M, 3, m)`` projects a 4-component quaternion
+        innovation onto its 3 rotational degrees of freedom for the gate.
         Returns (dx, P_new, accepted, rejected, nis).
         """
-        M, m, n = H.shape
-        Ht = np.swapaxes(H, -1, -2)
-        PHt = P @ Ht
-        S = sym(H @ PHt + R)
+        M, m = r.shape
+        n = P.shape[-1]
+        if H is None:
+            PHt = P[:, :, :m]
+            S = sym(P[:, :m, :m] + R)
+        else:
+            PHt = P @ np.swapaxes(H, -1, -2)
+            S = sym(H @ PHt + R)
         if m == 3:
             Sinv, det = inv3(S)
             good = np.isfinite(det) & (det > 0)
@@ -265,7 +270,12 @@ class AttitudeFilter:
         K = PHt @ Sinv
         K = np.where(passed[:, None, None], K, 0.0)
         dx = (K @ r[:, :, None])[:, :, 0]
-        IKH = np.eye(n) - K @ H
+        if H is None:
+            IKH = np.zeros((M, n, n))
+            IKH[:] = np.eye(n)
+            IKH[:, :, :m] -= K
+        else:
+            IKH = np.eye(n) - K @ H
         Pn = IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
         return dx, Pn, passed, rejected, nis
 

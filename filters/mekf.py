@@ -112,7 +112,7 @@ class MEKF(AttitudeFilter):
             qdiag.append(np.full(2, pn.inertia_ratio_psd_1_s))
         Qc = np.diag(np.concatenate(qdiag))
         PhiT = np.swapaxes(Phi, -1, -2)
-        Qd = 0.5 * dt * (Phi @ Qc @ PhiT + Qc)
+        Qd = dt * Qc
         if P.shape[-1] == nc:
             Pn = Phi @ P @ PhiT + Qd
         else:
@@ -121,7 +121,7 @@ class MEKF(AttitudeFilter):
             Pn[:, :nc, nc:] = Phi @ P[:, :nc, nc:]
             Pn[:, nc:, :nc] = np.swapaxes(Pn[:, :nc, nc:], -1, -2)
             Pn[:, nc:, nc:] = P[:, nc:, nc:]
-        return self._finish(state, q=q1, w=w1, P=Pn, qc=qc, p=p, t_s=state.t_s + dt)
+        return self._finish(state, q=q1, w=w1, P=Pn, qc=qc, p=p, t_s=state.t_s + dt, check_pd=False)
 
     # ------------------------------------------------------------------ measurements
     def update_absolute(self, state: FilterState, q_NT_meas: ArrayLike | None,
@@ -137,10 +137,7 @@ class MEKF(AttitudeFilter):
         valid &= cov_ok & ~state.failed
         q, w, P, qc, p = self._sanitized(state)
         r = rotvec(qmul(conj(q), z))
-        n = P.shape[-1]
-        H = np.zeros((M, 3, n))
-        H[:, :, :3] = np.eye(3)
-        dx, Pn, acc, rej, nis = self._gated_update(P, r, H, cov, valid)
+        dx, Pn, acc, rej, nis = self._gated_update(P, r, None, cov, valid)
         return self._apply(state, q, w, qc, p, dx, Pn, acc, rej, nis)
 
     def update_increment(

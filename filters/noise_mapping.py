@@ -25,9 +25,10 @@ import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints
 from numpy.typing import ArrayLike
 
-from ._batch import qexp_half, qmul, right_matrix, xi_matrix
+from ._batch import left_matrix, qexp_half, right_matrix, xi_matrix
 
 __all__ = ["UT_ALPHA", "UT_BETA", "UT_KAPPA", "sigma_point_weights", "quat_noise_covariance",
+           "rotation_noise_moments",
            "quat_noise_covariance_linear", "rotvec_covariance_from_angle_error"]
 
 #: Unscented-transform parameters: α = 1, β = 2, κ = 0 (Julier's symmetric set with the Gaussian
@@ -102,19 +103,30 @@ def quat_noise_covariance(
         UT covariance of ``z`` about that mean, rank 3 (null along ``q`` to first order).
     """
     q, cov = _check(q, cov_rotvec, side)
+    m, C = rotation_noise_moments(cov, alpha=alpha, beta=beta, kappa=kappa)
+    Lq = left_matrix(q) if side == "right" else right_matrix(q)
+    return (Lq @ m[..., None])[..., 0], Lq @ C @ np.swapaxes(Lq, -1, -2)
+
+
+def rotation_noise_moments(cov_rotvec: ArrayLike, *, alpha: float = UT_ALPHA, beta: float = UT_BETA,
+                           kappa: float = UT_KAPPA) -> tuple[np.ndarray, np.ndarray]:
+    """UT mean ``m`` (..., 4) and covariance ``C`` (..., 4, 4) of the noise quaternion ``exp(e/2)``.
+
+    Since ``q ⊗ δq = L(q) δq`` is linear in ``δq`` for a fixed ``q``, the unscented transform of
+    ``q ⊗ exp(e/2)`` is exactly ``(L(q) m, L(q) C L(q)ᵀ)`` (``Rm(q)`` for the left side): the
+    sigma points depend on Σ only, so a filter whose Σ does not change computes them once.
+    """
+    cov = np.asarray(cov_rotvec, dtype=float)
+    if cov.ndim < 2 or cov.shape[-2:] != (3, 3):
+        raise ValueError(f"cov_rotvec: expected shape (..., 3, 3), got {cov.shape}")
     Wm, Wc, c = _weights(3, float(alpha), float(beta), float(kappa))
     L = _sqrt_psd(cov * c)
     cols = np.swapaxes(L, -1, -2)  # rows: columns of L, as filterpy's rows of the upper factor
-    batch = np.broadcast_shapes(q.shape[:-1], cov.shape[:-2])
-    cols = np.broadcast_to(cols, batch + (3, 3))
-    e = np.concatenate([np.zeros(batch + (1, 3)), cols, -cols], -2)  # (..., 7, 3)
+    e = np.concatenate([np.zeros(cols.shape[:-2] + (1, 3)), cols, -cols], -2)  # (..., 7, 3)
     dq = qexp_half(e)
-    qb = np.broadcast_to(q[..., None, :], batch + (7, 4))
-    z = qmul(qb, dq) if side == "right" else qmul(dq, qb)
-    mean = (Wm @ z)
-    d = z - mean[..., None, :]
-    out = np.swapaxes(d, -1, -2) @ (Wc[:, None] * d)
-    return mean, out
+    mean = Wm @ dq
+    d = dq - mean[..., None, :]
+    return mean, np.swapaxes(d, -1, -2) @ (Wc[:, None] * d)
 
 
 def _sqrt_psd(A: np.ndarray) -> np.ndarray:
