@@ -105,97 +105,114 @@ def _scalar(a):
 
 
 # =========================================================================== closed-form kernel
-def _adj3(S: np.ndarray) -> np.ndarray:
-    """Adjugate of general 3×3 matrices ``(..., 3, 3)``."""
-    a = S
-    out = np.empty(S.shape)
-    out[..., 0, 0] = a[..., 1, 1] * a[..., 2, 2] - a[..., 1, 2] * a[..., 2, 1]
-    out[..., 0, 1] = a[..., 0, 2] * a[..., 2, 1] - a[..., 0, 1] * a[..., 2, 2]
-    out[..., 0, 2] = a[..., 0, 1] * a[..., 1, 2] - a[..., 0, 2] * a[..., 1, 1]
-    out[..., 1, 0] = a[..., 1, 2] * a[..., 2, 0] - a[..., 1, 0] * a[..., 2, 2]
-    out[..., 1, 1] = a[..., 0, 0] * a[..., 2, 2] - a[..., 0, 2] * a[..., 2, 0]
-    out[..., 1, 2] = a[..., 0, 2] * a[..., 1, 0] - a[..., 0, 0] * a[..., 1, 2]
-    out[..., 2, 0] = a[..., 1, 0] * a[..., 2, 1] - a[..., 1, 1] * a[..., 2, 0]
-    out[..., 2, 1] = a[..., 0, 1] * a[..., 2, 0] - a[..., 0, 0] * a[..., 2, 1]
-    out[..., 2, 2] = a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
-    return out
-
-
-def _rotation_from_correlation(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation maximising ``tr(R S)`` for ``S = Σ w p̃ q̃ᵀ`` (so ``q̃ ≈ R p̃``), batched.
+def _rotation_from_correlation(S: np.ndarray, upper: np.ndarray | None = None
+                               ) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation maximising ``tr(R S)`` for ``S = Σ w p̃ q̃ᵀ`` (so ``q̃ ≈ R p̃``), batched ``(B, 3, 3)``.
 
     Horn's quaternion form of the Kabsch/Umeyama solution: the rotation is the eigenvector of the
     largest eigenvalue of the traceless symmetric 4×4 matrix N(S); the eigenvalue is found by
     Newton's method on the characteristic quartic (Theobald's QCP) and the eigenvector as a column
     of adj(N − λI).  A unit quaternion is always a proper rotation, so this is the determinant-
     corrected solution ``U diag(1, 1, det UVᵀ) Vᵀ`` of 000 eq (37) / FLAG P000-10 — at a small
-    fraction of the cost of a batched 3×3 SVD.  Elements whose eigenvector is ill-determined fall
-    back to the SVD.  Returns ``(R, collinear)``, ``collinear`` flagging rank(S) ≤ 1.
+    fraction of the cost of a batched 3×3 SVD (all arithmetic runs on contiguous ``(B,)`` arrays).
+    Elements whose eigenvector is ill-determined fall back to the SVD.  ``upper`` is an optional
+    upper bound of λ_max (``(G_P + G_Q)/2`` of the centred second moments), which makes Newton
+    converge in a few steps for good fits.  Returns ``(R, collinear)``, ``collinear`` flagging
+    rank(S) ≤ 1.
     """
+    B = S.shape[0]
     bad = ~np.all(np.isfinite(S), axis=(-2, -1))
-    if np.any(bad):
-        S = np.where(bad[..., None, None], 0.0, S)
-    sxx, sxy, sxz = S[..., 0, 0], S[..., 0, 1], S[..., 0, 2]
-    syx, syy, syz = S[..., 1, 0], S[..., 1, 1], S[..., 1, 2]
-    szx, szy, szz = S[..., 2, 0], S[..., 2, 1], S[..., 2, 2]
-    N = np.empty(S.shape[:-2] + (4, 4))
-    N[..., 0, 0] = sxx + syy + szz
-    N[..., 1, 1] = sxx - syy - szz
-    N[..., 2, 2] = -sxx + syy - szz
-    N[..., 3, 3] = -sxx - syy + szz
-    N[..., 0, 1] = N[..., 1, 0] = syz - szy
-    N[..., 0, 2] = N[..., 2, 0] = szx - sxz
-    N[..., 0, 3] = N[..., 3, 0] = sxy - syx
-    N[..., 1, 2] = N[..., 2, 1] = sxy + syx
-    N[..., 1, 3] = N[..., 3, 1] = szx + sxz
-    N[..., 2, 3] = N[..., 3, 2] = syz + szy
-    f2 = np.sum(S * S, axis=(-2, -1))
-    adjS = _adj3(S)
-    collinear = ~(np.sqrt(np.sum(adjS * adjS, axis=(-2, -1))) > _COLLINEAR_TOL * f2)
-    # characteristic polynomial λ⁴ + c2 λ² + c1 λ + c0 (Horn 1987)
-    c2 = -2.0 * f2
-    c1 = -8.0 * np.linalg.det(S)
-    c0 = np.linalg.det(N)
+    c = np.ascontiguousarray(np.where(bad[:, None], 0.0, S.reshape(B, 9)).T)
+    sxx, sxy, sxz, syx, syy, syz, szx, szy, szz = c
+    # N(S) (Horn 1987), symmetric: 10 distinct entries
+    n00 = sxx + syy + szz
+    n11 = sxx - syy - szz
+    n22 = -sxx + syy - szz
+    n33 = -sxx - syy + szz
+    n01 = syz - szy
+    n02 = szx - sxz
+    n03 = sxy - syx
+    n12 = sxy + syx
+    n13 = szx + sxz
+    n23 = syz + szy
+    f2 = np.einsum("ij,ij->j", c, c)
+    # cofactors of S: ‖adj S‖² = σ1²σ2² + σ1²σ3² + σ2²σ3² (collinearity test) and det S
+    a00 = syy * szz - syz * szy
+    a01 = syz * szx - syx * szz
+    a02 = syx * szy - syy * szx
+    detS = sxx * a00 + sxy * a01 + sxz * a02
+    a10 = sxz * szy - sxy * szz
+    a11 = sxx * szz - sxz * szx
+    a12 = sxy * szx - sxx * szy
+    a20 = sxy * syz - sxz * syy
+    a21 = sxz * syx - sxx * syz
+    a22 = sxx * syy - sxy * syx
+    adjS2 = (a00 * a00 + a01 * a01 + a02 * a02 + a10 * a10 + a11 * a11 + a12 * a12
+             + a20 * a20 + a21 * a21 + a22 * a22)
+    collinear = ~(np.sqrt(adjS2) > _COLLINEAR_TOL * f2)
+
+    def det4_parts(m00, m01, m02, m03, m11, m12, m13, m22, m23, m33):
+        # 2×2 minors of rows (0, 1) and rows (2, 3) of a symmetric 4×4 matrix
+        s0 = m00 * m11 - m01 * m01
+        s1 = m00 * m12 - m01 * m02
+        s2 = m00 * m13 - m01 * m03
+        s3 = m01 * m12 - m11 * m02
+        s4 = m01 * m13 - m11 * m03
+        s5 = m02 * m13 - m12 * m03
+        c5 = m22 * m33 - m23 * m23
+        c4 = m12 * m33 - m13 * m23
+        c3 = m12 * m23 - m13 * m22
+        c2 = m02 * m33 - m03 * m23
+        c1 = m02 * m23 - m03 * m22
+        c0 = m02 * m13 - m03 * m12
+        return (s0, s1, s2, s3, s4, s5), (c0, c1, c2, c3, c4, c5)
+
+    (s0, s1, s2, s3, s4, s5), (k0, k1, k2, k3, k4, k5) = det4_parts(
+        n00, n01, n02, n03, n11, n12, n13, n22, n23, n33)
+    # characteristic polynomial λ⁴ + c2 λ² + c1 λ + c0 (Horn 1987; c0 = det N)
+    p2 = -2.0 * f2
+    p1 = -8.0 * detS
+    p0 = s0 * k5 - s1 * k4 + s2 * k3 + s3 * k2 - s4 * k1 + s5 * k0
     lam = np.sqrt(3.0 * f2)  # ≥ σ1 + σ2 + σ3 ≥ λ_max
+    if upper is not None:
+        lam = np.where(np.isfinite(upper), np.minimum(lam, upper * (1.0 + 1e-12)), lam)
     for _ in range(60):
         l2 = lam * lam
-        fval = (l2 + c2) * l2 + c1 * lam + c0
-        fder = 4.0 * l2 * lam + 2.0 * c2 * lam + c1
+        fval = (l2 + p2) * l2 + p1 * lam + p0
+        fder = (4.0 * l2 + 2.0 * p2) * lam + p1
         with np.errstate(divide="ignore", invalid="ignore"):
             step = np.where(fder > 0, fval / fder, 0.0)
         lam = lam - step
         if not np.any(np.abs(step) > 1e-15 * np.abs(lam)):
             break
-    A = N - lam[..., None, None] * np.eye(4)
-    # columns of adj(A): cofactors; A is symmetric so adj(A) is symmetric
-    idx = ((1, 2, 3), (0, 2, 3), (0, 1, 3), (0, 1, 2))
-    adj = np.empty(A.shape)
-    for i in range(4):
-        for j in range(i, 4):
-            minor = A[..., idx[i], :][..., :, idx[j]]
-            c = np.linalg.det(minor) * (-1.0) ** (i + j)
-            adj[..., i, j] = adj[..., j, i] = c
-    norms = np.sqrt(np.sum(adj * adj, axis=-2))
-    best = np.argmax(norms, axis=-1)
-    q = np.take_along_axis(adj, best[..., None, None], axis=-1)[..., 0]
-    qn = np.take_along_axis(norms, best[..., None], axis=-1)[..., 0]
-    scale = np.maximum(lam, 1e-300) ** 3
-    weak = ~(qn > 1e-10 * scale)
+    # adjugate of A = N − λI (symmetric): its columns are parallel to the eigenvector
+    m00, m11, m22, m33 = n00 - lam, n11 - lam, n22 - lam, n33 - lam
+    (s0, s1, s2, s3, s4, s5), (k0, k1, k2, k3, k4, k5) = det4_parts(
+        m00, n01, n02, n03, m11, n12, n13, m22, n23, m33)
+    adj = np.stack([
+        np.stack([m11 * k5 - n12 * k4 + n13 * k3, -n01 * k5 + n02 * k4 - n03 * k3,
+                  n13 * s5 - n23 * s4 + m33 * s3, -n12 * s5 + m22 * s4 - n23 * s3]),
+        np.stack([-n01 * k5 + n12 * k2 - n13 * k1, m00 * k5 - n02 * k2 + n03 * k1,
+                  -n03 * s5 + n23 * s2 - m33 * s1, n02 * s5 - m22 * s2 + n23 * s1]),
+        np.stack([n01 * k4 - m11 * k2 + n13 * k0, -m00 * k4 + n01 * k2 - n03 * k0,
+                  n03 * s4 - n13 * s2 + m33 * s0, -n02 * s4 + n12 * s2 - n23 * s0]),
+        np.stack([-n01 * k3 + m11 * k1 - n12 * k0, m00 * k3 - n01 * k1 + n02 * k0,
+                  -n03 * s3 + n13 * s1 - n23 * s0, n02 * s3 - n12 * s1 + m22 * s0]),
+    ])  # (4, 4, B); symmetric up to rounding
+    norms = np.sqrt(np.einsum("ijb,ijb->jb", adj, adj))
+    best = np.argmax(norms, axis=0)
+    cols = np.arange(B)
+    q = adj[:, best, cols]
+    qn = norms[best, cols]
+    weak = ~(qn > 1e-10 * np.maximum(lam, 1e-300) ** 3)
     with np.errstate(divide="ignore", invalid="ignore"):
-        q = q / qn[..., None]
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    R = np.empty(S.shape)
-    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    R[..., 0, 1] = 2 * (x * y - w * z)
-    R[..., 0, 2] = 2 * (x * z + w * y)
-    R[..., 1, 0] = 2 * (x * y + w * z)
-    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    R[..., 1, 2] = 2 * (y * z - w * x)
-    R[..., 2, 0] = 2 * (x * z - w * y)
-    R[..., 2, 1] = 2 * (y * z + w * x)
-    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
-    if np.any(weak & np.isfinite(lam)):
-        sel = weak & np.isfinite(lam)
+        w, x, y, z = q / qn
+    R = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                  2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                  2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)
+    R = R.reshape(B, 3, 3)
+    sel = weak & np.isfinite(lam) & ~bad
+    if np.any(sel):
         R[sel] = proper_rotation_from_svd(np.swapaxes(S[sel], -1, -2))
     if np.any(bad):
         R[bad] = np.nan
@@ -204,16 +221,18 @@ def _rotation_from_correlation(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _moments(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Weighted centroids and centred correlation ``S = Σ w p̃ q̃ᵀ`` of ``(B, N, 3)`` clouds.
+             ) -> tuple[np.ndarray, ...]:
+    """Weighted centroids, centred correlation ``S = Σ w p̃ q̃ᵀ``, total weight and centred second
+    moment ``G = Σ w (|p̃|² + |q̃|²)`` of ``(B, N, 3)`` clouds, in one pass over the data.
 
-    Non-finite rows must already carry zero weight and zero coordinates.  Processed in chunks so
-    that the raw moments of each chunk are formed while it is in cache.
+    Processed in chunks so that the raw moments of each chunk are formed while it is in cache.
+    A problem with a non-finite row gives non-finite moments (the caller masks and recomputes).
     """
     B, N = P.shape[0], P.shape[1]
     S = np.empty((B, 3, 3))
     sp = np.empty((B, 3))
     sq = np.empty((B, 3))
+    g = np.empty(B)
     if w is None:
         one = np.ones(N)
         for a in range(0, B, _CHUNK):
@@ -221,33 +240,38 @@ def _moments(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None
             np.matmul(np.swapaxes(p, -1, -2), q, out=S[a:a + _CHUNK])
             np.matmul(one, p, out=sp[a:a + _CHUNK])
             np.matmul(one, q, out=sq[a:a + _CHUNK])
+            g[a:a + _CHUNK] = (np.einsum("bni,bni->b", p, p) + np.einsum("bni,bni->b", q, q))
         sw = np.full(B, float(N))
     else:
         for a in range(0, B, _CHUNK):
             p, q, ww = P[a:a + _CHUNK], Q[a:a + _CHUNK], w[a:a + _CHUNK]
-            np.matmul(np.swapaxes(p * ww[..., None], -1, -2), q, out=S[a:a + _CHUNK])
+            pw = p * ww[..., None]
+            np.matmul(np.swapaxes(pw, -1, -2), q, out=S[a:a + _CHUNK])
             np.matmul(ww[:, None, :], p, out=sp[a:a + _CHUNK, None, :])
             np.matmul(ww[:, None, :], q, out=sq[a:a + _CHUNK, None, :])
+            g[a:a + _CHUNK] = (np.einsum("bni,bni->b", pw, p)
+                               + np.einsum("bni,bni,bn->b", q, q, ww))
         sw = np.sum(w, axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
         pbar = sp / sw[:, None]
         qbar = sq / sw[:, None]
     S -= sw[:, None, None] * pbar[:, :, None] * qbar[:, None, :]
+    offset = sw * (np.sum(pbar * pbar, -1) + np.sum(qbar * qbar, -1))
+    G = g - offset
     # cancellation guard: clouds far from the origin relative to their spread are recentred
-    spread = np.sqrt(np.sum(S * S, axis=(-2, -1)))
-    offset = sw * np.linalg.norm(pbar, axis=-1) * np.linalg.norm(qbar, axis=-1)
-    redo = np.nonzero(offset > 1e6 * spread)[0]
+    redo = np.nonzero(offset > 1e6 * np.abs(G))[0]
     if redo.size:
         Pc = P[redo] - pbar[redo, None, :]
         Qc = Q[redo] - qbar[redo, None, :]
         wr = np.ones(Pc.shape[:2]) if w is None else w[redo]
         S[redo] = np.swapaxes(Pc * wr[..., None], -1, -2) @ Qc
-    return pbar, qbar, S, sw, None  # type: ignore[return-value]
+        G[redo] = np.einsum("bni,bni,bn->b", Pc, Pc, wr) + np.einsum("bni,bni,bn->b", Qc, Qc, wr)
+    return pbar, qbar, S, sw, G
 
 
-def _prepare(P, Q, weights, *, names=("P", "Q")):
-    P = check_points(P, names[0])
-    Q = check_points(Q, names[1])
+def _prepare(P, Q, weights, *, names=("P", "Q"), scan=True):
+    P = check_points(P, names[0], scan=scan)
+    Q = check_points(Q, names[1], scan=scan)
     try:
         shape = np.broadcast_shapes(P.shape, Q.shape)
     except ValueError:
@@ -268,31 +292,45 @@ def _prepare(P, Q, weights, *, names=("P", "Q")):
     return P, Q, w
 
 
-def _kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None, valid: np.ndarray | None):
-    """Weighted Kabsch on flat ``(B, N, 3)`` problems; returns R, t, failure code per problem.
+def _kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
+    """Weighted Kabsch on flat ``(B, N, 3)`` problems (NaN rows ignored).
 
-    ``valid=None`` promises all rows finite (fast path).  Failure codes: 0 ok, 1 too few points,
-    2 collinear.
+    Returns ``R, t, code, npts, rms, rows``: failure code per problem (0 ok, 1 too few points,
+    2 collinear), usable-point count, weighted RMS residual (m), and the ``(B, N)`` mask of usable
+    rows (``None`` when every row of every problem is finite).
     """
-    if valid is not None:
-        wv = valid.astype(float) if w is None else np.where(valid, w, 0.0)
-        P = np.where(valid[..., None], P, 0.0)
-        Q = np.where(valid[..., None], Q, 0.0)
-        npts = np.sum(valid & (wv > 0), axis=-1)
-    else:
-        wv = w
-        npts = np.full(P.shape[0], P.shape[1]) if w is None else np.sum(w > 0, axis=-1)
-    pbar, qbar, S, sw, _ = _moments(P, Q, wv)
-    R, collinear = _rotation_from_correlation(S)
+    B, N = P.shape[0], P.shape[1]
+    pbar, qbar, S, sw, G = _moments(P, Q, w)
+    npts = np.full(B, N) if w is None else np.sum(w > 0, axis=-1)
+    rows = None
+    bad = ~(np.all(np.isfinite(S), axis=(-2, -1)) & np.isfinite(G))
+    if np.any(bad):
+        ib = np.nonzero(bad)[0]
+        Pb, Qb = P[ib], Q[ib]
+        if np.any(np.isinf(Pb)) or np.any(np.isinf(Qb)):
+            raise ValueError("P, Q: contain infinite values (use NaN for absent points)")
+        vb = np.all(np.isfinite(Pb), -1) & np.all(np.isfinite(Qb), -1)
+        wb = vb.astype(float) if w is None else np.where(vb, w[ib], 0.0)
+        Pb = np.where(vb[..., None], Pb, 0.0)
+        Qb = np.where(vb[..., None], Qb, 0.0)
+        pbar[ib], qbar[ib], S[ib], sw[ib], G[ib] = _moments(Pb, Qb, wb)
+        npts[ib] = np.sum(wb > 0, axis=-1)
+        rows = np.ones((B, N), bool) if w is None else w > 0
+        rows[ib] = wb > 0
+    R, collinear = _rotation_from_correlation(S, 0.5 * G)
     t = qbar - (R @ pbar[..., None])[..., 0]
-    code = np.zeros(P.shape[0], dtype=np.int8)
+    lam = np.einsum("bij,bji->b", R, S)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rms = np.sqrt(np.maximum(G - 2.0 * lam, 0.0) / sw)
+    code = np.zeros(B, dtype=np.int8)
     code[collinear] = 2
     code[npts < 3] = 1
-    bad = code != 0
-    if np.any(bad):
-        R[bad] = np.nan
-        t[bad] = np.nan
-    return R, t, code, npts
+    fail = code != 0
+    if np.any(fail):
+        R[fail] = np.nan
+        t[fail] = np.nan
+        rms[fail] = np.nan
+    return R, t, code, npts, rms, rows
 
 
 _KABSCH_REASONS = ("", "fewer than 3 usable points", "points are collinear")
@@ -313,7 +351,8 @@ def fit_rigid(P, Q, weights=None) -> RigidRegistration:
     weighted centroids (30), centred correlation ``B = Σ w (Q̃)(P̃)ᵀ = U D Vᵀ`` (33)–(34),
     ``R = U diag(1, 1, det U Vᵀ) Vᵀ`` (37) and ``t = Q̄ − R P̄`` (38), with the corrections of
     SEEDS_SPEC FLAGs P000-10, P003-7 and P003-8 (6 DOF, ≥ 3 non-collinear points).  The rotation is
-    computed with Horn's equivalent quaternion eigenproblem (fast and batched).
+    computed with Horn's equivalent quaternion eigenproblem in closed form, and the moments in
+    one cache-friendly pass, so a batch of 10⁴ problems is a single fast call.
 
     Parameters
     ----------
@@ -327,38 +366,28 @@ def fit_rigid(P, Q, weights=None) -> RigidRegistration:
     Returns
     -------
     RigidRegistration
-        ``method="kabsch"``; ``cov`` and ``chi2`` are NaN.  Fewer than 3 usable points or collinear
-        points give ``ok=False`` with the reason and NaN ``R``, ``t``.
+        ``method="kabsch"``; ``rms_m`` is the weighted RMS residual; ``cov`` and ``chi2`` are NaN.
+        Fewer than 3 usable points or collinear points give ``ok=False`` with the reason and NaN
+        ``R``, ``t``.
     """
-    P, Q, w = _prepare(P, Q, weights)
+    P, Q, w = _prepare(P, Q, weights, scan=False)
     shape = P.shape
     batch, N = shape[:-2], shape[-2]
     Pf = P.reshape((-1, N, 3))
     Qf = Q.reshape((-1, N, 3))
     wf = None if w is None else w.reshape((-1, N))
-    B = Pf.shape[0]
-    finite = np.isfinite(np.sum(Pf, axis=(-2, -1)) + np.sum(Qf, axis=(-2, -1))) if B else \
-        np.ones(0, bool)
-    if np.all(finite):
-        valid = None
-        inl = np.ones((B, N), bool) if wf is None else wf > 0
-    else:
-        valid = np.all(np.isfinite(Pf), -1) & np.all(np.isfinite(Qf), -1)
-        inl = valid if wf is None else valid & (wf > 0)
-    R, t, code, npts = _kabsch_flat(Pf, Qf, wf, valid)
-    Pz = Pf if valid is None else np.where(valid[..., None], Pf, 0.0)
-    Qz = Qf if valid is None else np.where(valid[..., None], Qf, 0.0)
-    rms = _residual_rms(Pz, Qz, R, t, inl)
-    reason = np.array(_KABSCH_REASONS, dtype=object)[code].astype(str)
+    R, t, code, npts, rms, rows = _kabsch_flat(Pf, Qf, wf)
+    if rows is None:
+        rows = np.ones(Pf.shape[:2], bool) if wf is None else wf > 0
     ok = code == 0
+    reason = np.array(_KABSCH_REASONS)[code]
+    n_in = np.where(ok, npts, 0)
     return RigidRegistration(
         R=R.reshape(batch + (3, 3)), t=t.reshape(batch + (3,)),
-        cov=np.full(batch + (6, 6), np.nan), inliers=(inl & ok[:, None]).reshape(batch + (N,)),
-        n_inliers=np.where(ok, np.sum(inl, -1), 0).reshape(batch),
-        rms_m=rms.reshape(batch), chi2=np.full(batch, np.nan),
-        dof=(3 * np.where(ok, np.sum(inl, -1), 0) - 6).reshape(batch),
-        ok=_scalar(ok.reshape(batch)), failure_reason=_scalar(reason.reshape(batch)),
-        method="kabsch",
+        cov=np.full(batch + (6, 6), np.nan), inliers=(rows & ok[:, None]).reshape(batch + (N,)),
+        n_inliers=n_in.reshape(batch), rms_m=rms.reshape(batch), chi2=np.full(batch, np.nan),
+        dof=(3 * n_in - 6).reshape(batch), ok=_scalar(ok.reshape(batch)),
+        failure_reason=_scalar(reason.reshape(batch)), method="kabsch",
     )
 
 
@@ -475,7 +504,7 @@ def fit_rigid_robust(P, Q, *, weights=None, cov_P=None, cov_Q=None, threshold_m=
         ar = active[:, None, None]
         p3 = Pz[ar, idx]
         q3 = Qz[ar, idx]
-        R, t, code, _ = _kabsch_flat(p3.reshape(-1, 3, 3), q3.reshape(-1, 3, 3), None, None)
+        R, t, code, *_ = _kabsch_flat(p3.reshape(-1, 3, 3), q3.reshape(-1, 3, 3), None)
         R = R.reshape(active.size, H, 3, 3)
         t = t.reshape(active.size, H, 3)
         good_h = (code == 0).reshape(active.size, H)
@@ -504,7 +533,7 @@ def fit_rigid_robust(P, Q, *, weights=None, cov_P=None, cov_Q=None, threshold_m=
         Rs, ts = R[sel], t[sel]
         m = score(Rs[:, None], ts[:, None], sel)[:, 0]
         for _ in range(max(int(refits), 0)):
-            Rn, tn, code, _ = _kabsch_flat(Pz[sel], Qz[sel], np.where(m, wf[sel], 0.0), None)
+            Rn, tn, code, *_ = _kabsch_flat(Pz[sel], Qz[sel], np.where(m, wf[sel], 0.0))
             okr = code == 0
             Rs = np.where(okr[:, None, None], Rn, Rs)
             ts = np.where(okr[:, None], tn, ts)
@@ -630,7 +659,7 @@ def fit_rigid_ml(P, Q, cov_P, cov_Q, *, robust: bool = True, R0=None, t0=None,
         reason = np.asarray(start.failure_reason, dtype=object).reshape(-1)
     else:
         wtr = np.where(valid, 1.0 / np.trace(cPz + cQz, axis1=-2, axis2=-1), 0.0)
-        R, t, code, _ = _kabsch_flat(Pz, Qz, wtr, None)
+        R, t, code, *_ = _kabsch_flat(Pz, Qz, wtr)
         start_ok = code == 0
         reason = np.array(_KABSCH_REASONS, dtype=object)[code]
     R = np.where(start_ok[:, None, None], R, np.eye(3))
@@ -688,7 +717,7 @@ def fit_rigid_ml(P, Q, cov_P, cov_Q, *, robust: bool = True, R0=None, t0=None,
     Hm[:, 3:, 3:] = np.sum(Wm, axis=1)
     n_in = np.sum(inl, -1)
     # collinear check on the inlier set (rank of the correlation)
-    _, _, code, _ = _kabsch_flat(Pz, Qz, inl.astype(float), None)
+    _, _, code, *_ = _kabsch_flat(Pz, Qz, inl.astype(float))
     degenerate = code != 0
     ok = start_ok & ~degenerate & (n_in >= 3)
     Hs = np.where(ok[:, None, None], Hm, np.eye(6))
