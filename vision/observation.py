@@ -21,7 +21,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Observation"]
+__all__ = [
+    "Observation",
+    "STATUS_EARTH_SHADOW",
+    "STATUS_OK",
+    "STATUS_OUTSIDE_FOV",
+    "STATUS_TOO_FEW_MATCHES",
+]
+
+STATUS_OK = "ok"
+STATUS_EARTH_SHADOW = "target in Earth shadow"
+STATUS_OUTSIDE_FOV = "target outside field of view"
+STATUS_TOO_FEW_MATCHES = "too few matches"
 
 
 @dataclass(frozen=True)

@@ -27,15 +27,13 @@ from numpy.typing import ArrayLike
 
 from attitude.quaternion import check_quat, matrix_from_quat
 from vision.camera import PinholeCamera, check_pose
+from vision.observation import STATUS_EARTH_SHADOW, STATUS_OK, STATUS_OUTSIDE_FOV
 from vision.sensor import SensorModel
 from vision.target import Target
 
 __all__ = ["RenderResult", "cast_body_points", "render", "roi_of_target", "STATUS_OK", "STATUS_EARTH_SHADOW",
            "STATUS_OUTSIDE_FOV", "STATUS_BEHIND_CAMERA"]
 
-STATUS_OK = "ok"
-STATUS_EARTH_SHADOW = "target in Earth shadow"
-STATUS_OUTSIDE_FOV = "target outside field of view"
 STATUS_BEHIND_CAMERA = "target behind camera"
 
 _ROI_ALIGN_PX = 32

@@ -18,8 +18,14 @@ from numpy.typing import ArrayLike
 from attitude.quaternion import matrix_from_quat
 from vision.camera import PinholeCamera, check_pose
 from vision.features import _as_cameras, detect, match_views
-from vision.observation import Observation
-from vision.render import STATUS_EARTH_SHADOW, RenderResult, cast_body_points, render
+from vision.observation import STATUS_OK, STATUS_OUTSIDE_FOV, Observation
+from vision.render import (
+    STATUS_BEHIND_CAMERA,
+    STATUS_EARTH_SHADOW,
+    RenderResult,
+    cast_body_points,
+    render,
+)
 from vision.sensor import SensorModel
 from vision.target import Target
 
@@ -123,11 +129,12 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
     size = cams[0].image_size
     if all(r.status == STATUS_EARTH_SHADOW for r in renders):
         return Observation.empty(K, T, size, pixel_sigma_px, STATUS_EARTH_SHADOW)
-    visible = [r.status == "ok" for r in renders]
+    visible = [r.status == STATUS_OK for r in renders]
     if sum(visible) < 2:
-        reasons = sorted({r.status for r in renders if r.status != "ok"})
+        # seen by fewer than two cameras: report the first blind view's reason
+        reason = next(r.status for r in renders if r.status != STATUS_OK)
         return Observation.empty(K, T, size, pixel_sigma_px,
-                                 "target seen by fewer than 2 cameras: " + ", ".join(reasons))
+                                 STATUS_OUTSIDE_FOV if reason == STATUS_BEHIND_CAMERA else reason)
     kps = []
     for r, vis in zip(renders, visible, strict=True):
         if vis:

@@ -383,9 +383,9 @@ def _tex_solar(rng, shape, texel_m) -> np.ndarray:
     cw, ch = max(3, round(0.04 / texel_m)), max(3, round(0.06 / texel_m))
     ny, nx = h // ch + 1, w // cw + 1
     # cell reflectance: per-module (6 x 10 cells) and per-cell scatter, a few odd cells
-    mod = 0.14 * rng.standard_normal((ny // 10 + 1, nx // 6 + 1))
+    mod = 0.2 * rng.standard_normal((ny // 10 + 1, nx // 6 + 1))
     cell = 0.5 + np.repeat(np.repeat(mod, 10, axis=0), 6, axis=1)[:ny, :nx] \
-        + 0.13 * rng.standard_normal((ny, nx))
+        + 0.15 * rng.standard_normal((ny, nx))
     u = rng.random((ny, nx))
     cell[u < 0.04] = rng.uniform(0.85, 1.0, int((u < 0.04).sum()))
     cell[(u >= 0.04) & (u < 0.07)] = 0.08
@@ -399,8 +399,8 @@ def _tex_solar(rng, shape, texel_m) -> np.ndarray:
         img[:, x + 2:x + 3] = 0.9
     for y in range(0, h, 10 * ch):
         img[y:y + 2, :] = 0.05
-    img += 0.10 * _noise(rng, shape, 0.12 / texel_m) + 0.04 * _noise(rng, shape, 0.6)
-    _labels(rng, img, texel_m, count=max(1, int(h * w * texel_m ** 2 / 0.7)))
+    img += 0.12 * _noise(rng, shape, 0.08 / texel_m) + 0.04 * _noise(rng, shape, 0.6)
+    _labels(rng, img, texel_m, count=max(1, int(h * w * texel_m ** 2 / 0.4)))
     return np.clip(img, 0.02, 1.0)
 
 
@@ -585,7 +585,7 @@ class _MeshBuilder:
                       texel_m=texel_m, seed=seed, description=description)
 
 
-def _pack_atlas(charts: list[_Chart], n_tri: int, *, texel_m: float, seed: int):
+def _pack_atlas(charts: list[_Chart], n_tri: int, *, texel_m: float, seed: int, pad: int = _CHART_PAD):
     """Shelf-pack charts into one atlas, generate their textures, and map chart UVs to texels."""
     import cv2
 
@@ -597,7 +597,6 @@ def _pack_atlas(charts: list[_Chart], n_tri: int, *, texel_m: float, seed: int):
         else:
             sizes.append((max(2, int(np.ceil(ch.height_m / texel_m))),
                           max(2, int(np.ceil(ch.width_m / texel_m)))))
-    pad = _CHART_PAD
     total = sum((h + 2 * pad) * (w + 2 * pad) for h, w in sizes)
     atlas_w = max(int(np.ceil(np.sqrt(total) * 1.15)), max(w for _, w in sizes) + 2 * pad)
     order = sorted(range(len(charts)), key=lambda i: -sizes[i][0])
@@ -807,26 +806,42 @@ def load_mesh(path: str | Path, *, unit_m: float, name: str | None = None,
                       triangle_material=mat, materials=materials, texture=atlas,
                       texel_m=texel_m, seed=seed,
                       description=f"{p.name}, unit {unit_m} m, file texture")
-    # procedural box mapping: six charts (axis, sign)
+    # procedural box mapping: one planar chart per (connected piece, dominant normal axis and sign),
+    # so that no two surfaces share texels
     pt = V[Fi]
     n = np.cross(pt[:, 1] - pt[:, 0], pt[:, 2] - pt[:, 0])
     axis = np.argmax(np.abs(n), axis=1)
     sign = n[np.arange(len(n)), axis] >= 0
-    chart_of = axis * 2 + (~sign)
-    order = np.argsort(chart_of, kind="stable")
-    Fi, mat, chart_of, pt = Fi[order], mat[order], chart_of[order], pt[order]
-    lo, hi = V.min(axis=0), V.max(axis=0)
+    piece = _mesh_pieces(V, Fi)
+    key = piece * 6 + axis * 2 + (~sign)
+    order = np.argsort(key, kind="stable")
+    Fi, mat, key, pt, axis = Fi[order], mat[order], key[order], pt[order], axis[order]
+    bounds = np.flatnonzero(np.r_[True, key[1:] != key[:-1], True])
     charts = []
-    for c in range(6):
-        idx = np.nonzero(chart_of == c)[0]
-        if len(idx) == 0:
-            continue
-        a = c // 2
+    for b0, b1 in zip(bounds[:-1], bounds[1:], strict=True):
+        a = int(axis[b0])
         a1, a2 = [(1, 2), (2, 0), (0, 1)][a]
-        uv_m = np.stack([pt[idx][..., a1] - lo[a1], pt[idx][..., a2] - lo[a2]], axis=-1)
-        charts.append(_Chart(float(hi[a1] - lo[a1]) + texel_m, float(hi[a2] - lo[a2]) + texel_m,
-                             "mli", slice(int(idx[0]), int(idx[-1]) + 1), uv_m))
-    atlas, tri_uv = _pack_atlas(charts, len(Fi), texel_m=texel_m, seed=seed)
+        p2 = np.stack([pt[b0:b1][..., a1], pt[b0:b1][..., a2]], axis=-1)
+        lo2 = p2.reshape(-1, 2).min(axis=0)
+        ext = p2.reshape(-1, 2).max(axis=0) - lo2
+        charts.append(_Chart(float(ext[0]) + texel_m, float(ext[1]) + texel_m, "mli",
+                             slice(int(b0), int(b1)), p2 - lo2))
+    atlas, tri_uv = _pack_atlas(charts, len(Fi), texel_m=texel_m, seed=seed, pad=8)
     return Target(name=nm, vertices_T=V, triangles=Fi, triangle_uv=tri_uv, triangle_material=mat,
                   materials=materials, texture=atlas, texel_m=texel_m, seed=seed,
                   description=f"{p.name}, unit {unit_m} m, procedural box-mapped texture")
+
+
+def _mesh_pieces(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Connected piece of every triangle (vertices merged by position to 1e-6 of the mesh size)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    tol = 1e-6 * max(1e-12, float(np.ptp(V, axis=0).max()))
+    _, vid = np.unique(np.round(V / tol).astype(np.int64), axis=0, return_inverse=True)
+    f = vid.reshape(-1)[F]
+    nv = int(f.max()) + 1
+    r = np.concatenate([f[:, 0], f[:, 1]])
+    c = np.concatenate([f[:, 1], f[:, 2]])
+    _, lab = connected_components(coo_matrix((np.ones(len(r)), (r, c)), shape=(nv, nv)), directed=False)
+    return lab[f[:, 0]].astype(np.int64)
