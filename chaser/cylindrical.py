@@ -142,12 +142,14 @@ class TurntableSamples:
 
 
 def tracker_sigma_m(distance_m: ArrayLike, *, mpe_const_m: float = 15e-6, mpe_per_m: float = 6e-6) -> np.ndarray:
-    """Per-axis standard deviation of a laser-tracker coordinate: half the MPE ``±(15 µm + 6 µm/m)``.
+    """Per-axis standard deviation of a laser-tracker coordinate from its MPE ``±(15 µm + 6 µm/m)``.
 
-    The Leica AT901 specification of 004 §4.1 in the corrected reading of flag P004-11; the
-    maximum permissible error is taken as 2σ.
+    The Leica AT901 specification of 004 §4.1 in the corrected reading of flag P004-11.  The MPE
+    ``U_xyz`` bounds the error of the 3-D coordinate and its typical value is half of it (the
+    manufacturer's convention), so the 3-D RMS error is ``U_xyz / 2`` and each axis gets
+    ``U_xyz / (2 √3)``: 5.3 µm at 2 m, 11 µm at 3.7 m.
     """
-    return 0.5 * (mpe_const_m + mpe_per_m * np.asarray(distance_m, dtype=float))
+    return (mpe_const_m + mpe_per_m * np.asarray(distance_m, dtype=float)) / (2.0 * np.sqrt(3.0))
 
 
 def simulate_turntable_calibration(
@@ -161,6 +163,7 @@ def simulate_turntable_calibration(
     rail_step_m: float = 0.06,
     tracker_distance_m: float = 2.0,
     turntable_sigma_rad: float = 1.0e-6,
+    axis_offset_m: ArrayLike = (0.0, 0.0, 0.0),
     n_scans: int = 20,
     method: str = "threshold_centroid",
 ) -> TurntableSamples:
@@ -173,7 +176,9 @@ def simulate_turntable_calibration(
     ``alpha_step_deg`` (encoder error ``turntable_sigma_rad``; 0.6″ full-range accuracy in 004) and
     the spot centres are measured, averaged over ``n_scans`` line scans.  The reference angles are
     ``α_i = atan(x_C/z_C)``, ``β_i = atan(y_C/z_C)`` of the tracker-measured point rotated by the
-    turntable reading.
+    turntable reading.  ``axis_offset_m`` (camera frame) is where the turntable axis really passes
+    when the optical centre is not adjusted exactly onto it (004 step 1); the reference angles
+    assume it passes through the optical centre, so an offset is a systematic calibration error.
 
     Returns
     -------
@@ -193,9 +198,12 @@ def simulate_turntable_calibration(
     # light point in the camera frame at turntable angle 0: (0, h, D); tracker measures it with error
     P_true = np.stack([np.zeros_like(heights), heights, np.full_like(heights, rail_distance_m)], -1)
     P_meas = P_true + rng.standard_normal(P_true.shape) * tracker_sigma_m(tracker_distance_m)
+    off = np.asarray(axis_offset_m, dtype=float)
+    if off.shape != (3,) or not np.all(np.isfinite(off)):
+        raise ValueError(f"axis_offset_m: expected 3 finite numbers, got {axis_offset_m!r}")
     th_true = theta[None, :] + rng.standard_normal((heights.size, theta.size)) * turntable_sigma_rad
-    # turning the camera by θ about its y axis shows the point at camera coordinates R_y(θ) P
-    X_true = np.einsum("hkij,hj->hki", rot_y(th_true), P_true)
+    # turning the camera by θ about its y axis (through ``off``) shows the point at R_y(θ)(P − off) + off
+    X_true = np.einsum("hkij,hj->hki", rot_y(th_true), P_true - off) + off
     X_ref = np.einsum("kij,hj->hki", rot_y(np.broadcast_to(theta, th_true.shape[1:])), P_meas)
     ab_true = angles_from_points(X_true).reshape(-1, 2)
     ab_ref = angles_from_points(X_ref).reshape(-1, 2)
