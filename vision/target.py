@@ -731,7 +731,9 @@ def load_mesh(path: str | Path, *, unit_m: float, name: str | None = None,
     texture : {"auto", "file", "procedural"}
         ``"file"`` uses the file's single texture image (error when there is none), ``"procedural"``
         generates one, ``"auto"`` uses the file's texture when there is exactly one with complete
-        texture coordinates and falls back to procedural otherwise.
+        texture coordinates and falls back to procedural otherwise. File texture coordinates are read
+        with v up (OBJ/OpenGL convention, which Open3D returns; its assimp reader converts glTF's
+        top-left origin to it); the image is used as grey-level albedo.
     texel_m : float
         Procedural texel size, metres.
     seed : int
@@ -768,7 +770,7 @@ def load_mesh(path: str | Path, *, unit_m: float, name: str | None = None,
     mat_ids = (np.asarray(mesh.triangle_material_ids, dtype=np.int64)
                if mesh.has_triangle_material_ids() else np.zeros(len(Fi), np.int64))
     uvs = np.asarray(mesh.triangle_uvs, dtype=float)
-    textures = [np.asarray(t) for t in mesh.textures if np.asarray(t).size > 0]
+    textures = [np.asarray(t) for t in mesh.textures if np.asarray(t).ndim >= 2]
     has_file_tex = len(textures) == 1 and uvs.shape == (3 * len(Fi), 2)
     if texture == "file" and not has_file_tex:
         raise ValueError(f"texture='file' but {str(p)!r} has no single texture with complete UVs")
@@ -800,7 +802,9 @@ def load_mesh(path: str | Path, *, unit_m: float, name: str | None = None,
         import cv2
 
         atlas = cv2.copyMakeBorder(img, 0, H - h, 0, W - w, cv2.BORDER_REPLICATE)
-        tri_uv = (uvs * np.array([w, h]) - 0.5).astype(np.float32)
+        # Open3D returns texture coordinates with v up (OBJ/OpenGL; assimp flips glTF to this)
+        tri_uv = np.stack([uvs[..., 0] * w - 0.5, (1.0 - uvs[..., 1]) * h - 0.5], axis=-1)
+        tri_uv = tri_uv.astype(np.float32)
         materials = tuple(Material(m.name, m.kind, 1.0, m.specular, m.shininess) for m in materials)
         return Target(name=nm, vertices_T=V, triangles=Fi, triangle_uv=tri_uv,
                       triangle_material=mat, materials=materials, texture=atlas,
