@@ -85,6 +85,7 @@ __all__ = [
     "paper_rig",
     "tracker_sigma_m",
     "control_points_in_cube",
+    "SystemCalibration",
     "calibrate_system",
     "rig_detections",
     "TrackerSettings",
@@ -782,8 +783,6 @@ class SystemCalibration:
     control_points_W: np.ndarray
     control_points_measured_W: np.ndarray
 
-
-__all__.append("SystemCalibration")
 
 
 def calibrate_system(
