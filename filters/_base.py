@@ -45,6 +45,7 @@ class AttitudeFilter:
         J_kg_m2: ArrayLike,
         process_noise: ProcessNoise | None = None,
         gate_probability: float | None = 0.9999,
+        reset_after_rejections: int | None = 10,
         n_substeps: int = 1,
     ):
         self.J_kg_m2 = check_inertia(J_kg_m2, name="J_kg_m2")
@@ -56,6 +57,10 @@ class AttitudeFilter:
             raise ValueError(f"gate_probability: must be in (0, 1) or None, got {gate_probability!r}")
         self.gate_probability = gate_probability
         self.gate_threshold = np.inf if gate_probability is None else float(chi2.ppf(gate_probability, 3))
+        if reset_after_rejections is not None and (int(reset_after_rejections) != reset_after_rejections
+                                                   or reset_after_rejections < 1):
+            raise ValueError(f"reset_after_rejections: must be an integer >= 1 or None, got {reset_after_rejections!r}")
+        self.reset_after_rejections = None if reset_after_rejections is None else int(reset_after_rejections)
         if int(n_substeps) != n_substeps or n_substeps < 1:
             raise ValueError(f"n_substeps: must be an integer >= 1, got {n_substeps!r}")
         self.n_substeps = int(n_substeps)
@@ -126,6 +131,8 @@ class AttitudeFilter:
         return FilterState(
             t_s=float(t_s), q_NT=q, omega_TN_T=w, P=P, inertia_ratios=ratios, q_NT_clone=None,
             t_clone_s=None, n_accepted=np.zeros(M, dtype=int), n_rejected=np.zeros(M, dtype=int),
+            n_consecutive_rejected=np.zeros(M, dtype=int), n_resets=np.zeros(M, dtype=int),
+            P_reset=P.copy(),
             failed=np.zeros(M, dtype=bool), failure_reason=np.full(M, "", dtype=object),
             last_nis=np.full(M, np.nan),
         )
@@ -181,12 +188,28 @@ class AttitudeFilter:
                 p = np.where(fm, np.nan, p)
         n_acc = state.n_accepted + (0 if accepted is None else (accepted & ~failed))
         n_rej = state.n_rejected + (0 if rejected is None else (rejected & ~failed))
+        consec = state.n_consecutive_rejected
+        n_resets = state.n_resets
+        if rejected is not None:
+            consec = np.where(rejected & ~failed, consec + 1, np.where(accepted, 0, consec))
+            if self.reset_after_rejections is not None:
+                reset = consec >= self.reset_after_rejections
+                if reset.any():
+                    # re-acquire: core covariance back to P_reset, cross-covariance with a clone zeroed
+                    nc = self._n_core
+                    P = P.copy()
+                    P[reset, :nc, :] = 0.0
+                    P[reset, :, :nc] = 0.0
+                    P[reset, :nc, :nc] = state.P_reset[reset]
+                    consec = np.where(reset, 0, consec)
+                    n_resets = n_resets + reset
         last_nis = np.full(q.shape[0], np.nan) if nis is None else np.where(failed, np.nan, nis)
         return FilterState(
             t_s=state.t_s if t_s is None else float(t_s), q_NT=q, omega_TN_T=w, P=P,
             inertia_ratios=p, q_NT_clone=qc,
             t_clone_s=state.t_clone_s if t_clone_s is None else t_clone_s,
-            n_accepted=n_acc, n_rejected=n_rej, failed=failed, failure_reason=reason,
+            n_accepted=n_acc, n_rejected=n_rej, n_consecutive_rejected=consec, n_resets=n_resets,
+            P_reset=state.P_reset, failed=failed, failure_reason=reason,
             last_nis=last_nis,
         )
 

@@ -69,6 +69,9 @@ class AttitudeEKF(AttitudeFilter):
         Chi-square gate on the three rotational degrees of freedom of the innovation: a
         measurement whose NIS exceeds the ``gate_probability`` quantile of χ²₃ is rejected and
         counted.  ``None`` disables gating.
+    reset_after_rejections : int or None
+        After this many consecutive rejections the trial's covariance is reset to its initial
+        value (re-acquisition; counted in ``FilterState.n_resets``).  ``None``: never.
     radial : {"isotropic", "jitter"}
         How the rank-3 quaternion measurement covariance is completed along the predicted
         measurement: with the mean tangential variance (default, consistent) or only with
@@ -83,11 +86,12 @@ class AttitudeEKF(AttitudeFilter):
     _n_clone = 4
 
     def __init__(self, *, J_kg_m2: ArrayLike, process_noise: ProcessNoise | None = None,
-                 gate_probability: float | None = 0.9999,
+                 gate_probability: float | None = 0.9999, reset_after_rejections: int | None = 10,
                  radial: Literal["isotropic", "jitter"] = "isotropic",
                  measurement_jitter: float = 1e-12, n_substeps: int = 1):
         super().__init__(J_kg_m2=J_kg_m2, process_noise=process_noise,
-                         gate_probability=gate_probability, n_substeps=n_substeps)
+                         gate_probability=gate_probability,
+                         reset_after_rejections=reset_after_rejections, n_substeps=n_substeps)
         if not np.isfinite(measurement_jitter) or measurement_jitter < 0:
             raise ValueError(f"measurement_jitter: must be finite and >= 0, got {measurement_jitter!r}")
         self.measurement_jitter = float(measurement_jitter)

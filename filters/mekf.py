@@ -51,6 +51,9 @@ class MEKF(AttitudeFilter):
     process_noise : ProcessNoise, optional
     gate_probability : float or None
         Chi-square (3 dof) innovation gate; rejected measurements are counted in the state.
+    reset_after_rejections : int or None
+        After this many consecutive rejections the trial's covariance is reset to its initial
+        value (re-acquisition; counted in ``FilterState.n_resets``).  ``None``: never.
     n_substeps : int
         RK4 sub-steps per :meth:`predict`.
     """
@@ -58,10 +61,11 @@ class MEKF(AttitudeFilter):
     _n_clone = 3
 
     def __init__(self, *, J_kg_m2: ArrayLike, estimate_inertia_ratios: bool = False,
-                 process_noise: ProcessNoise | None = None, gate_probability: float | None = 0.9999,
+                 process_noise: ProcessNoise | None = None, gate_probability: float | None = 0.9999, reset_after_rejections: int | None = 10,
                  n_substeps: int = 1):
         super().__init__(J_kg_m2=J_kg_m2, process_noise=process_noise,
-                         gate_probability=gate_probability, n_substeps=n_substeps)
+                         gate_probability=gate_probability,
+                         reset_after_rejections=reset_after_rejections, n_substeps=n_substeps)
         self._ratios = bool(estimate_inertia_ratios)
         self._n_core = 8 if self._ratios else 6
         self.default_inertia_ratios = (inertia_ratios_from_inertia(self.J_kg_m2) if self._ratios

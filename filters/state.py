@@ -64,6 +64,14 @@ class FilterState:
         Epoch of the clone.
     n_accepted, n_rejected : (M,) int arrays
         Measurements used, and rejected by the chi-square gate.
+    n_consecutive_rejected : (M,) int array
+        Rejections since the last accepted measurement.
+    n_resets : (M,) int array
+        Times the covariance was reset to ``P_reset`` after too many consecutive rejections (a
+        filter whose estimate has drifted outside its own gate would otherwise reject every
+        later measurement).
+    P_reset : (M, n_core, n_core) array
+        Covariance used for such a reset (the initial covariance by default).
     failed : (M,) bool array
         Trial whose covariance stopped being positive definite (or turned non-finite); its
         estimates are NaN from then on and it is not updated any more.
@@ -82,6 +90,9 @@ class FilterState:
     t_clone_s: float | None
     n_accepted: np.ndarray
     n_rejected: np.ndarray
+    n_consecutive_rejected: np.ndarray
+    n_resets: np.ndarray
+    P_reset: np.ndarray
     failed: np.ndarray
     failure_reason: np.ndarray
     last_nis: np.ndarray
