@@ -100,6 +100,11 @@ class SensorModel:
         """``numpy.uint8`` for 8 bits or fewer, else ``numpy.uint16``."""
         return np.uint8 if self.bits <= 8 else np.uint16
 
+    @property
+    def electrons_per_unit_radiance(self) -> float:
+        """Mean electrons collected at unit radiance in the fixed exposure ``exposure_s``."""
+        return float(self.exposure_s * self.responsivity_e_per_s)
+
     def exposure_for(self, radiance: ArrayLike) -> float:
         """Exposure time (s) used for this radiance image: ``exposure_s``, or the automatic choice."""
         if not self.auto_exposure:

@@ -19,9 +19,10 @@ FY-1-like dimensions (:func:`fy1_target`) and their sources:
   "FY-1C polar orbiting meteorological satellite of China", geospatialworld.net: "a hexahedron of
   1.42 m × 1.42 m × 1.2 m ... with three solar cell arrays, the total length of the satellite is
   10.556 m");
-- wings: two wings of three panels, each wing 3.51 m of cells ("two solar arrays about 3.5 m long
-  each", FAS / Encyclopedia Astronautica for FY-1A/B), on a 1.058 m yoke so that the tip-to-tip span
-  is the published 10.556 m. Panel width 1.20 m and thickness 0.025 m are assumptions (not published);
+- wings: two wings of three 1.17 m panels, 3.51 m of cells per wing ("two solar arrays about 3.5 m
+  long each", FAS / Encyclopedia Astronautica for FY-1A/B), with 2 cm hinge gaps, on a 1.018 m yoke
+  so that the tip-to-tip span is the published 10.556 m. Panel width 1.20 m and thickness 0.025 m
+  are assumptions (not published);
 - antennas and instruments: two 0.8 m whip antennas, a 0.3 m helix can and a scanner-radiometer box
   with a radiant-cooler box on the Earth face — sizes are illustrative, not from drawings.
 
