@@ -121,7 +121,8 @@ def _make_detector(detector: str, max_features: int, options: dict):
     if detector == "orb":
         return cv2.ORB_create(nfeatures=int(max_features) or 5000, **options)
     if detector == "akaze":
-        return cv2.AKAZE_create(**options)
+        create = getattr(cv2, "AKAZE_create", None) or cv2.xfeatures2d.AKAZE_create  # OpenCV 5 moved it
+        return create(**options)
     raise ValueError(f"detector must be one of {DETECTORS}, got {detector!r}")
 
 
