@@ -77,7 +77,7 @@ class MeasurementModel:
         ``angle_error_deg`` is ignored.
     missing_fraction : float
         Fraction of the run during which the observers are lost (no measurement), in gaps of
-        ``gap_s`` seconds placed at random without overlap.
+        ``gap_s`` seconds (the last one shorter if needed) placed at random without overlap.
     gap_s : float
         Length of each gap (s).
     outlier_fraction : float
@@ -204,21 +204,28 @@ def draw_initial_estimates(q_NT0: ArrayLike, omega_TN_T0: ArrayLike, *, sigma_q:
 
 
 def _gap_mask(t: np.ndarray, fraction: float, gap_s: float, g: np.random.Generator) -> np.ndarray:
-    """(T,) bool: True where observers are lost; gaps of ``gap_s`` totalling ``fraction`` of the run."""
+    """(T,) bool: True where observers are lost.
+
+    The lost time ``fraction × duration`` is cut into gaps of ``gap_s`` (the last one shorter if
+    needed), placed in random order at random non-overlapping positions.
+    """
     T = t.size
     lost = np.zeros(T, dtype=bool)
     if fraction <= 0:
         return lost
     duration = t[-1] - t[0]
-    n_gaps = int(round(fraction * duration / gap_s))
-    if n_gaps == 0:
-        return lost
-    free = duration - n_gaps * gap_s
-    if free < 0:
-        raise ValueError(f"missing_fraction/gap_s: {n_gaps} gaps of {gap_s} s do not fit in {duration} s")
-    starts = np.sort(g.uniform(0.0, free, size=n_gaps)) + gap_s * np.arange(n_gaps) + t[0]
-    for s in starts:
-        lost |= (t >= s) & (t < s + gap_s)
+    total = fraction * duration
+    n_full = int(np.floor(total / gap_s + 1e-9))
+    lengths = [gap_s] * n_full
+    rest = total - n_full * gap_s
+    if rest > 1e-9:
+        lengths.append(rest)
+    lengths = np.asarray(lengths)[g.permutation(len(lengths))]
+    free = duration - lengths.sum()
+    u = np.sort(g.uniform(0.0, free, size=lengths.size))
+    starts = u + np.concatenate([[0.0], np.cumsum(lengths)[:-1]]) + t[0]
+    for s, length in zip(starts, lengths, strict=True):
+        lost |= (t >= s) & (t < s + length)
     return lost
 
 
@@ -320,6 +327,8 @@ class MonteCarloResult:
     n_accepted, n_rejected : (M,) int arrays
     n_outliers : (M,) int array
         Outliers injected.
+    n_resets : (M,) int array
+        Covariance resets after consecutive rejections (see ``FilterState.n_resets``).
     failed : (M,) bool array
     failure_reason : (M,) str array
     criterion : ConvergenceCriterion
@@ -342,6 +351,7 @@ class MonteCarloResult:
     n_accepted: np.ndarray
     n_rejected: np.ndarray
     n_outliers: np.ndarray
+    n_resets: np.ndarray
     failed: np.ndarray
     failure_reason: np.ndarray
     criterion: ConvergenceCriterion
@@ -393,6 +403,7 @@ class MonteCarloResult:
             "nees_inside_fraction": self.nees_inside_fraction(after_s=nees_after_s),
             "n_rejected": int(self.n_rejected.sum()),
             "n_outliers": int(self.n_outliers.sum()),
+            "n_resets": int(self.n_resets.sum()),
             "n_failed": int(self.failed.sum()),
             "criterion": {"attitude_deg": self.criterion.attitude_deg,
                           "rate_deg_s": self.criterion.rate_deg_s,
@@ -514,6 +525,6 @@ def run_monte_carlo(
         sigma_tangent=sigma, converged=conv & ~state.failed, convergence_time_s=np.where(
             state.failed, np.nan, tc),
         n_accepted=state.n_accepted.copy(), n_rejected=state.n_rejected.copy(),
-        n_outliers=meas.outlier.sum(axis=1), failed=state.failed.copy(),
+        n_outliers=meas.outlier.sum(axis=1), n_resets=state.n_resets.copy(), failed=state.failed.copy(),
         failure_reason=state.failure_reason.copy(), criterion=criterion, measurements=meas,
     )
