@@ -347,8 +347,9 @@ class TofFrame:
     saturated: np.ndarray
 
 
+@functools.lru_cache(maxsize=8)
 def _pixel_rays_S(camera: TofCamera, supersample: int) -> np.ndarray:
-    """Unit ray directions ``(H, W, s*s, 3)`` in frame S for a regular sub-pixel grid."""
+    """Unit ray directions ``(H, W, s*s, 3)`` in frame S for a regular sub-pixel grid (read-only)."""
     s = supersample
     off = (np.arange(s) + 0.5) / s - 0.5
     v, u = np.meshgrid(np.arange(camera.height_px, dtype=float), np.arange(camera.width_px, dtype=float),
@@ -358,7 +359,9 @@ def _pixel_rays_S(camera: TofCamera, supersample: int) -> np.ndarray:
     vv = v[..., None] + dv.ravel()
     d = np.stack([(uu - camera.cx_px) / camera.fx_px, (vv - camera.cy_px) / camera.fy_px,
                   np.ones_like(uu)], axis=-1)
-    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    d.flags.writeable = False
+    return d
 
 
 def _check_pose(R_SC: ArrayLike, r_CS_S: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
@@ -416,17 +419,19 @@ def render_tof_frame(camera: TofCamera, target: CooperativeTarget, R_SC: ArrayLi
     normal_C = hit["primitive_normals"].numpy().astype(float).reshape(dirs_C.shape)
     hit_any = np.isfinite(t)
     t_safe = np.where(hit_any, t, 1.0)
-    cos_inc = np.abs(np.sum(normal_C * dirs_C, axis=-1))
+    cos_inc = np.abs(np.einsum("...k,...k->...", normal_C, dirs_C))
 
     refl = np.full(t.shape, target.body_reflectivity)
     on_plate = hit_any & (gid == plate_id)
     refl[on_plate] = target.plate.plate_reflectivity
     dots = target.printed_dots_xy_m
     if len(dots):
-        p_C = origin_C + t_safe[..., None] * dirs_C
-        front = on_plate & (p_C[..., 2] < 0.5 * target.plate.thickness_m)
-        d2 = ((p_C[..., None, :2] - dots) ** 2).sum(-1).min(-1)
-        refl[front & (d2 <= target.plate.marker_radius_m**2)] = target.plate.marker_reflectivity
+        sel = np.flatnonzero(on_plate.ravel())
+        p_C = origin_C + t_safe.ravel()[sel, None] * dirs_C.reshape(-1, 3)[sel]
+        sel = sel[p_C[:, 2] < 0.5 * target.plate.thickness_m]
+        p_C = origin_C[:2] + t_safe.ravel()[sel, None] * dirs_C.reshape(-1, 3)[sel, :2]
+        d2 = ((p_C[:, None, :] - dots) ** 2).sum(-1).min(-1)
+        refl.ravel()[sel[d2 <= target.plate.marker_radius_m**2]] = target.plate.marker_reflectivity
 
     a = np.where(hit_any, camera.signal_amplitude_dn(refl, t_safe, cos_inc), 0.0)
     k = 1.0 / camera.meters_per_radian
