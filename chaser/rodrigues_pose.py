@@ -179,7 +179,8 @@ class RodriguesPoseResult:
     n_points : (...,) int ndarray
         Visible points used.
     residual_rms_m : (...,) ndarray
-        RMS focal-plane reprojection residual at the returned pose (per coordinate), m.
+        RMS focal-plane reprojection residual at the returned pose (per coordinate, unweighted), m;
+        evaluated to first order in the last update, whose size is below ε₁, ε₂.
     """
 
     pose: GibbsPose
@@ -501,70 +502,71 @@ def solve_pose_rodrigues(
     wgt_all = (np.sqrt(w) * vis)[..., None]
     limit = 1.0 + eta
 
+    rms = np.full(B, np.nan)
     for _ in range(int(max_iterations)):
         act = np.flatnonzero((code == 0) & ~done)
         if act.size == 0:
             break
-        ga, ia, ta = g[act], i[act], t[act]
+        ga, ia, ta, va = g[act], i[act], t[act], vis[act]
         xbar, Z, Aj = _predict(P[act], ga, ia, ta, f)
         wgt = wgt_all[act]
         fail = np.zeros(act.size, np.int8)
-        behind = ~(Z > 0) & vis[act]
+        behind = ~(Z > 0) & va
         if behind.any():  # (14): the linearisation is meaningless for a point behind the camera
             fail[behind.any(-1)] = _CODE["behind_camera"]
             xbar = np.where(behind[..., None], 0.0, xbar)
             Aj = np.where(behind[..., None, None], 0.0, Aj)
-        db = ((xy[act] - xbar) * wgt).reshape(act.size, 2 * M)  # (21), (24), (27)
+        res = xy[act] - xbar  # (21), (24)
+        db = (res * wgt).reshape(act.size, 2 * M)  # (27)
         A = (Aj * wgt[..., None]).reshape(act.size, 2 * M, 6)  # (25), (27)
         # (28) by the normal equations of the column-equilibrated system; the eigen-decomposition
         # gives both the rank test of (27) and the solution.
-        At = np.swapaxes(A, -1, -2)
+        At = A.transpose(0, 2, 1)
         N = At @ A
-        col = np.sqrt(np.einsum("bii->bi", N))
-        deficient = ~np.all(col > 0, -1)
+        col = np.sqrt(N.diagonal(0, 1, 2))
+        deficient = ~(col > 0).all(-1)
         if deficient.any():
             col = np.where(col > 0, col, 1.0)
         lam, V = np.linalg.eigh(N / (col[:, :, None] * col[:, None, :]))
         deficient |= ~(lam[:, 0] > (rcond * rcond) * lam[:, -1])
         rhs = (At @ db[..., None]) / col[..., None]
         with np.errstate(divide="ignore", invalid="ignore"):
-            dX = (V @ ((np.swapaxes(V, -1, -2) @ rhs)[..., 0] / lam)[..., None])[..., 0] / col
+            dX = (V @ ((V.transpose(0, 2, 1) @ rhs)[..., 0] / lam)[..., None])[..., 0] / col
         fail[(fail == 0) & deficient] = _CODE["rank_deficient"]
         dg, dt = dX[:, :3], dX[:, 3:]
-        den = 1.0 - np.sum(dg * ga, -1)  # denominator of (10)
+        den = 1.0 - (dg * ga).sum(-1)  # denominator of (10)
         if not switching:
             fail[(fail == 0) & ~(den > 0.0)] = _CODE["gibbs_singular"]
-        fail[(fail == 0) & ~np.all(np.isfinite(dX), -1)] = _CODE["diverged"]
+        fail[(fail == 0) & ~np.isfinite(dX).all(-1)] = _CODE["diverged"]
         good = fail == 0
         if not good.all():
             code[act[~good]] = fail[~good]
-            act, ga, ia, ta, dg, dt, den = (x[good] for x in (act, ga, ia, ta, dg, dt, den))
+            act, ga, ia, ta, dg, dt, den, dX, res, Aj, va = (
+                x[good] for x in (act, ga, ia, ta, dg, dt, den, dX, res, Aj, va))
         if act.size == 0:
             continue
-        if switching and not np.all(den != 0.0):
+        if switching and not (den != 0.0).all():
             g_new, i_new = _compose_switch(dg, ga, ia, eta)
         else:
             g_new, i_new = shuster_gibbs_compose(dg, ga), ia  # (10)
-            if switching and np.any(np.abs(g_new) > limit):
+            if switching and (np.abs(g_new) > limit).any():
                 g_new, i_new = gibbs_switch(g_new, ia, eta=eta)  # switching rule, (5)
         t_new = ta + dt  # (11)
-        finite = np.all(np.isfinite(g_new), -1) & np.all(np.isfinite(t_new), -1)
+        finite = np.isfinite(g_new).all(-1) & np.isfinite(t_new).all(-1)
         if not finite.all():
             code[act[~finite]] = _CODE["diverged"]
         g[act], i[act], t[act] = g_new, i_new, t_new
         switches[act] += i_new != ia
         iters[act] += 1
-        conv = finite & (np.sum(dg * dg, -1) < eps_attitude**2) & (np.sum(dt * dt, -1) < eps_translation_m**2)
-        done[act[conv]] = True
+        conv = finite & ((dg * dg).sum(-1) < eps_attitude**2) & ((dt * dt).sum(-1) < eps_translation_m**2)
+        if conv.any():
+            done[act[conv]] = True
+            # residual at the returned pose, to first order in the last update (|ΔX| below ε)
+            r_new = (res[conv] - (Aj[conv] @ dX[conv, None, :, None])[..., 0]) * va[conv][..., None]
+            rms[act[conv]] = np.sqrt((r_new * r_new).sum((-1, -2)) / (2 * n_pts[act[conv]]))
     code[(code == 0) & ~done] = _CODE["not_converged"]
     ok = code == 0
-
-    # residual at the returned pose
-    rms = np.full(B, np.nan)
-    if np.any(ok):
-        xbar, _, _ = _predict(P[ok], g[ok], i[ok], t[ok], f)
-        r2 = np.sum(((xy[ok] - xbar) ** 2) * vis[ok][..., None], (-1, -2))
-        rms[ok] = np.sqrt(r2 / (2 * n_pts[ok]))
+    rms[~ok] = np.nan
     g[~ok] = np.nan
     t[~ok] = np.nan
     reason = _REASON_NAMES[code]

@@ -176,6 +176,10 @@ def test_noisy_solution_is_the_reprojection_minimum_found_by_opencv_sqpnp_plus_l
     res = solve_pose_rodrigues(CUBE_T, xy, GibbsPose.from_quat(q0, r0), focal_length_m=F_M,
                                eps_attitude=1e-12, eps_translation_m=1e-9, max_iterations=50)
     assert res.ok.all()
+    xy_hat, _ = project_focal_plane(CUBE_T, res.R_CT, res.r_TC_C, focal_length_m=F_M)
+    rms = np.sqrt(np.nanmean((xy_hat - xy) ** 2, axis=(-1, -2)))
+    np.testing.assert_allclose(res.residual_rms_m, rms, rtol=1e-9)
+    assert 0.2 * PIXEL_M < np.median(rms) < 1.0 * PIXEL_M  # 1 px noise, 12–14 residuals, 6 unknowns
     crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-14)
     for b in range(n):
         uv = pixels_from_focal_plane(xy[b, vis[b]], pixel_size_m=PIXEL_M, principal_point_px=CENTRE_PX)
