@@ -564,6 +564,35 @@ class PlaneIntersection:
     failure_reason: np.ndarray
 
 
+def _sym_entries(nx, ny, nz, w2):
+    """Entries ``(xx, yy, zz, xy, xz, yz)`` of ``Σ_k w²_k n̂_k n̂_kᵀ`` from component arrays ``(K, ...)``."""
+    wx, wy, wz = w2 * nx, w2 * ny, w2 * nz
+    return ((wx * nx).sum(0), (wy * ny).sum(0), (wz * nz).sum(0), (wx * ny).sum(0), (wx * nz).sum(0),
+            (wy * nz).sum(0))
+
+
+def _sym_inverse(a, b, c, e, f, g):
+    """Adjugate and determinant of the symmetric matrices ``[[a, e, f], [e, b, g], [f, g, c]]``."""
+    A00, A01, A02 = b * c - g * g, f * g - e * c, e * g - b * f
+    A11, A12, A22 = a * c - f * f, e * f - a * g, a * b - e * e
+    det = a * A00 + e * A01 + f * A02
+    return (A00, A11, A22, A01, A02, A12), det
+
+
+def _sym_eigvals(a, b, c, e, f, g):
+    """Ascending eigenvalues of the same symmetric matrices (closed trigonometric form)."""
+    q = (a + b + c) / 3.0
+    p1 = e * e + f * f + g * g
+    p = np.sqrt(((a - q) ** 2 + (b - q) ** 2 + (c - q) ** 2 + 2.0 * p1) / 6.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        A, B, Cc, E, F, G = (a - q) / p, (b - q) / p, (c - q) / p, e / p, f / p, g / p
+        r = np.clip((A * (B * Cc - G * G) - E * (E * Cc - G * F) + F * (E * G - B * F)) / 2.0, -1.0, 1.0)
+    phi = np.where(p > 0, np.arccos(np.where(np.isfinite(r), r, 1.0)) / 3.0, 0.0)
+    e1 = q + 2.0 * p * np.cos(phi)
+    e3 = q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
+    return e3, 3.0 * q - e1 - e3, e1
+
+
 def intersect_planes(
     R_CW: ArrayLike,
     t_CW: ArrayLike,
@@ -607,43 +636,54 @@ def intersect_planes(
     if angle_sigma_rad is not None and not angle_sigma_rad > 0:
         raise ValueError(f"angle_sigma_rad: must be positive, got {angle_sigma_rad!r}")
     batch = ab.shape[:-2]
-    tan = np.tan(ab)  # (..., C, 2)
+    # plane-major layout (2C, ...): planes ordered (camera, channel); sums over planes are then fast
+    tan = np.ascontiguousarray(np.moveaxis(np.tan(ab).reshape(batch + (2 * C,)), -1, 0))
     use = np.isfinite(tan)
     tan0 = np.where(use, tan, 0.0)
-    # normals (..., C, 2, 3) and right-hand sides (..., C, 2)
-    n_vec = R[:, :2, :] - tan0[..., None] * R[:, None, 2, :]
-    rhs = tan0 * t[:, None, 2] - t[:, :2]
-    norm = np.linalg.norm(n_vec, axis=-1)
-    n_hat = n_vec / norm[..., None]
-    d = rhs / norm
+    # plane k of camera c, channel j: normal r_cj − tan r_c3, right-hand side tan t_c3 − t_cj
+    Rj = R[:, :2, :].reshape(2 * C, 3)
+    R3 = np.repeat(R[:, 2, :], 2, axis=0)
+    tj = t[:, :2].reshape(2 * C)
+    t3 = np.repeat(t[:, 2], 2)
+    ex = (slice(None),) + (None,) * len(batch)
+    nx, ny, nz = (Rj[:, i][ex] - tan0 * R3[:, i][ex] for i in range(3))
+    norm = np.sqrt(nx * nx + ny * ny + nz * nz)
+    nx, ny, nz = nx / norm, ny / norm, nz / norm
+    d = (tan0 * t3[ex] - tj[ex]) / norm
     w = use.astype(float)
-    n_planes = use.reshape(batch + (-1,)).sum(-1)
-    # independence from the singular values of the stacked used unit normals
-    Nu = (n_hat * w[..., None]).reshape(batch + (2 * C, 3))
-    sv = np.linalg.svd(Nu, compute_uv=False)
+    n_planes = use.sum(0)
+    # independence: singular values of the stacked used unit normals = sqrt(eigenvalues of Σ n̂ n̂ᵀ)
+    lam_min, _, lam_max = _sym_eigvals(*_sym_entries(nx, ny, nz, w))
     with np.errstate(invalid="ignore", divide="ignore"):
-        indep = np.where(sv[..., 0] > 0, sv[..., 2] / sv[..., 0], 0.0)
+        indep = np.where(lam_max > 0, np.sqrt(np.maximum(lam_min, 0.0) / lam_max), 0.0)
     ok = (n_planes >= 3) & (indep >= min_independence)
     centres = -np.einsum("cji,cj->ci", R, t)  # camera centres in W
+    cam_of_plane = np.repeat(np.arange(C), 2)
 
-    def solve(weights):
-        wn = (n_hat * weights[..., None]).reshape(batch + (2 * C, 3))
-        wd = (d * weights).reshape(batch + (2 * C,))
-        M = np.einsum("...ki,...kj->...ij", wn, wn)
-        b = np.einsum("...ki,...k->...i", wn, wd)
-        M = np.where(ok[..., None, None], M, np.eye(3))
-        b = np.where(ok[..., None], b, 0.0)
-        return np.linalg.solve(M, b[..., None])[..., 0], M
+    def solve(w2):
+        ent = _sym_entries(nx, ny, nz, w2)
+        adj, det = _sym_inverse(*ent)
+        det = np.where(ok, det, 1.0)
+        wd = w2 * d
+        bx, by, bz = (wd * nx).sum(0), (wd * ny).sum(0), (wd * nz).sum(0)
+        A00, A11, A22, A01, A02, A12 = adj
+        with np.errstate(invalid="ignore", divide="ignore"):
+            X = np.stack([A00 * bx + A01 * by + A02 * bz, A01 * bx + A11 * by + A12 * bz,
+                          A02 * bx + A12 * by + A22 * bz], -1) / det[..., None]
+        return X, adj, det
 
-    X, _ = solve(w)
-    rng_c = np.linalg.norm(X[..., None, :] - centres, axis=-1)  # (..., C)
-    w2 = w / np.maximum(rng_c[..., None], 1e-9)
-    X, M = solve(w2)
-    resid = (np.einsum("...cki,...i->...ck", n_hat, X) - d) * w
-    rms = np.sqrt(np.sum(resid**2, axis=(-1, -2)) / np.maximum(n_planes, 1))
+    X, _, _ = solve(w)
+    rng_c = np.linalg.norm(np.where(ok[..., None], X, 0.0)[None] - centres[(slice(None),) + ex[1:] + (slice(None),)],
+                           axis=-1)  # (C, ...)
+    w2 = w / np.maximum(rng_c[cam_of_plane], 1e-9) ** 2
+    X, adj, det = solve(w2)
+    resid = (nx * X[..., 0] + ny * X[..., 1] + nz * X[..., 2] - d) * w
+    rms = np.sqrt(np.sum(resid**2, axis=0) / np.maximum(n_planes, 1))
     cov = None
     if angle_sigma_rad is not None:
-        cov = np.linalg.inv(M) * angle_sigma_rad**2
+        A00, A11, A22, A01, A02, A12 = adj
+        cov = np.stack([np.stack([A00, A01, A02], -1), np.stack([A01, A11, A12], -1),
+                        np.stack([A02, A12, A22], -1)], -2) / det[..., None, None] * angle_sigma_rad**2
         cov = np.where(ok[..., None, None], cov, np.nan)
     reason = np.where(n_planes < 3, "fewer than 3 planes",
                       np.where(indep < min_independence, "planes not independent", ""))
