@@ -55,6 +55,7 @@ STATUS_TOO_FEW_VIEWS = 1
 STATUS_DEGENERATE = 2
 STATUS_BEHIND_CAMERA = 3
 STATUS_REPROJECTION = 4
+_DROP_VIEW_CHI2 = float(_chi2.isf(1e-6, 2))
 #: Human-readable reason for each per-point status code (index = code).
 STATUS_REASONS = (
     "ok",
@@ -196,7 +197,9 @@ def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
     sees it behind the camera (cheirality), when the rays are degenerate, or when its chi-square
     ``J(ρ̂)`` exceeds the ``gate_probability`` quantile of χ²(2 n_views − 3) (the statistically
     calibrated form of 003 eq 8).  With 3 or more views, a rejected point is retried once without
-    its worst view (a mismatch in one view is caught by the others).
+    its worst view, and kept if it then passes and the dropped view is a clear outlier against the
+    others (innovation beyond the 1 − 10⁻⁶ χ²₂ quantile): a mismatch in one view is caught by the
+    others, while good points rejected by chance stay rejected (no selection bias in the NEES).
 
     Parameters
     ----------
@@ -311,7 +314,20 @@ def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
             Ki_r = np.broadcast_to(Kinv_b, batch + (1, n, 3, 3))[bidx + (0,)]
             X2, cov2, st2, rms2, chi22, nv2, _ = run(use_r, uv0[idx], K_r, T_r, Ki_r,
                                                      cw_p[idx], sigma[idx])
-            fixed = st2 == STATUS_OK
+            # accept the drop only if the dropped view is a clear outlier against the others:
+            # innovation χ²₂ above the 1 − 10⁻⁶ quantile (a ~5σ test).  Without this test, good
+            # points that failed the gate by chance would come back with a selection-biased
+            # error (their NEES averages ~8 instead of 3).
+            ar = np.arange(use_r.shape[0])
+            d = worst[idx]
+            uvp_d, _, Jd = project(X2, K_r[ar, d], T_r[ar, d])
+            r_d = uv0[idx][ar, d] - uvp_d
+            S = (Jd @ cov2 @ np.swapaxes(Jd, -1, -2)
+                 + (sigma[idx][ar, d] ** 2 / cw_p[idx][ar, d])[:, None, None] * np.eye(2))
+            det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] * S[:, 1, 0]
+            d2 = (S[:, 1, 1] * r_d[:, 0] ** 2 - 2 * S[:, 0, 1] * r_d[:, 0] * r_d[:, 1]
+                  + S[:, 0, 0] * r_d[:, 1] ** 2) / det
+            fixed = (st2 == STATUS_OK) & (d2 > _DROP_VIEW_CHI2)
             fidx = tuple(a[fixed] for a in idx)
             X[fidx], cov[fidx], status[fidx] = X2[fixed], cov2[fixed], st2[fixed]
             rms[fidx], chi2[fidx], nv[fidx] = rms2[fixed], chi22[fixed], nv2[fixed]
