@@ -320,7 +320,9 @@ def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
             # error (their NEES averages ~8 instead of 3).
             ar = np.arange(use_r.shape[0])
             d = worst[idx]
-            uvp_d, _, Jd = project(X2, K_r[ar, d], T_r[ar, d])
+            Kd = np.broadcast_to(K_r, (ar.size, n, 3, 3))[ar, d]
+            Td = np.broadcast_to(T_r, (ar.size, n, 4, 4))[ar, d]
+            uvp_d, _, Jd = project(X2, Kd, Td)
             r_d = uv0[idx][ar, d] - uvp_d
             S = (Jd @ cov2 @ np.swapaxes(Jd, -1, -2)
                  + (sigma[idx][ar, d] ** 2 / cw_p[idx][ar, d])[:, None, None] * np.eye(2))
