@@ -29,8 +29,8 @@ Predicted camera points ``X̄_C = R(g₀) X_T + t₀`` (14), ``X_r = R(g₀) X_T
 with the corrected projection Jacobian of FLAG P001-1
 ``J_c = [[−f/Z̄, 0, f X̄/Z̄²], [0, −f/Z̄, f Ȳ/Z̄²]]``, least squares
 ``ΔX = (AᵀWA)⁻¹AᵀWΔb`` (28), update ``g ← δg * g`` (10) and ``t ← t + Δt`` (11), switch (5), stop
-when ``|δg| < ε₁`` and ``|Δt| < ε₂``.  The least-squares step (28) is solved through the
-eigen-decomposition of the column-equilibrated normal matrix, which also gives the rank test of (27).
+when ``|δg| < ε₁`` and ``|Δt| < ε₂``.  The least-squares step (28) is solved from the
+column-equilibrated normal equations, whose eigenvalues give the rank test of (27).
 
 Every function is vectorised over leading batch axes (independent problems: trials, spacecraft,
 random attitudes).  Failures are reported per problem in :attr:`RodriguesPoseResult.failure_reason`
@@ -519,19 +519,20 @@ def solve_pose_rodrigues(
         res = xy[act] - xbar  # (21), (24)
         db = (res * wgt).reshape(act.size, 2 * M)  # (27)
         A = (Aj * wgt[..., None]).reshape(act.size, 2 * M, 6)  # (25), (27)
-        # (28) by the normal equations of the column-equilibrated system; the eigen-decomposition
-        # gives both the rank test of (27) and the solution.
+        # (28) by the normal equations of the column-equilibrated system; its eigenvalues give the
+        # rank test of (27) (squared singular values of the equilibrated √W A).
         At = A.transpose(0, 2, 1)
         N = At @ A
         col = np.sqrt(N.diagonal(0, 1, 2))
         deficient = ~(col > 0).all(-1)
         if deficient.any():
             col = np.where(col > 0, col, 1.0)
-        lam, V = np.linalg.eigh(N / (col[:, :, None] * col[:, None, :]))
+        Ns = N / (col[:, :, None] * col[:, None, :])
+        lam = np.linalg.eigvalsh(Ns)
         deficient |= ~(lam[:, 0] > (rcond * rcond) * lam[:, -1])
-        rhs = (At @ db[..., None]) / col[..., None]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            dX = (V @ ((V.transpose(0, 2, 1) @ rhs)[..., 0] / lam)[..., None])[..., 0] / col
+        if deficient.any():
+            Ns[deficient] = np.eye(6)  # solved but discarded: keeps the batched solve non-singular
+        dX = np.linalg.solve(Ns, (At @ db[..., None]) / col[..., None])[..., 0] / col
         fail[(fail == 0) & deficient] = _CODE["rank_deficient"]
         dg, dt = dX[:, :3], dX[:, 3:]
         den = 1.0 - (dg * ga).sum(-1)  # denominator of (10)
