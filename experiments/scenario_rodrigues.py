@@ -426,6 +426,7 @@ def _summary(cfg: Config, ds: xr.Dataset) -> dict:
             "across_los_m": _stats(d["position_error_across_m"].values),
             **{f"hill_{a}_m": _stats(d["position_error_H"].sel(hill_axis=a).values)
                for a in ("radial", "along_track", "cross_track")},
+            **{f"camera_{a}_m": _stats(d["position_error_C"].sel(axis=a).values) for a in ("x", "y", "z")},
             **{f"{e}_deg": _stats(d["attitude_error_euler"].sel(euler=e).values) for e in ("yaw", "pitch", "roll")},
             "median_solve_time_us": float(np.nanmedian(d["solve_time_s"].values) * 1e6),
         }
