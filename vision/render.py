@@ -11,8 +11,10 @@ For one camera pose, target attitude and Sun direction, :func:`render` gives
 
 Rays are cast only through the region of interest (ROI): the projected bounding box of the target,
 widened by a margin and aligned to a 32-px grid (so SIFT's image pyramids of the crop and of the full
-image sample the same pixels); the result is placed in full-size arrays. Outside the ROI the image is
-the black level (zero signal: the default sensor's read noise is 0.13 DN there).
+image sample the same pixels); the result is placed in full-size arrays. Sensor noise is drawn per
+image tile (:class:`~vision.sensor.SensorModel`), so inside the ROI the image is the full-frame image
+exactly; outside it is the black level (zero signal: the default sensor's read noise, 0.13 DN, rounds
+to 0 there).
 
 Frames: the target's centre of mass is the origin of the Hill frame H (= world W); its attitude is
 ``q_HT`` (``R_HT`` maps body to Hill components); the camera pose is ``T_CW``.
@@ -379,5 +381,5 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
     subL = lit_img[rs]
     subL[hit] = lit & (f_sun > 0)
     exposure = sensor.exposure_for(rad_roi)
-    image[rs] = sensor.apply(rad_roi, rng=rng, exposure_s=exposure)
+    image[rs] = sensor.apply(rad_roi, rng=rng, exposure_s=exposure, origin_px=(x0, y0))
     return result(STATUS_EARTH_SHADOW if f_sun == 0.0 else STATUS_OK, exposure)
