@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from attitude.quaternion import quat_angle_between, quat_from_rotvec, quat_multiply, quat_normalize
-from experiments.sweep import Metric, SweepCell
+from experiments.sweep import Metric, SweepCell, child_seeds
 
 __all__ = ["axis_sigma_rad", "perturb_attitude", "attitude_noise_cell", "ATTITUDE_NOISE_CELL"]
 
@@ -83,7 +83,7 @@ def attitude_noise_cell(params: Mapping[str, Any], seeds: Sequence[np.random.See
     rms = np.empty(len(seeds))
     mean = np.empty(len(seeds))
     for t, ss in enumerate(seeds):
-        rng_truth, rng_noise = (np.random.default_rng(s) for s in ss.spawn(2))
+        rng_truth, rng_noise = (np.random.default_rng(s) for s in child_seeds(ss, 2))
         q = quat_normalize(rng_truth.normal(size=(samples, 4)))
         ang = quat_angle_between(q, perturb_attitude(q, e, rng=rng_noise))
         rms[t] = np.rad2deg(np.sqrt(np.mean(ang**2)))

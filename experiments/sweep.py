@@ -56,7 +56,11 @@ __all__ = [
     "GridRange",
     "run_sweep",
     "open_sweep",
+    "parse_overrides",
+    "prepare_config_sweep",
+    "sweep_summary",
     "cell_seed_sequences",
+    "child_seeds",
     "redraw",
 ]
 
@@ -220,6 +224,17 @@ def cell_seed_sequences(seed: int, params: Mapping[str, Any], trials: int) -> li
     """
     entropy = _cell_entropy(seed, params)
     return [np.random.SeedSequence(entropy, spawn_key=(t,)) for t in range(trials)]
+
+
+def child_seeds(ss: np.random.SeedSequence, n: int) -> list[np.random.SeedSequence]:
+    """The ``n`` children of ``ss`` that ``ss.spawn(n)`` gives on a fresh object, without mutating ``ss``.
+
+    ``SeedSequence.spawn`` is stateful (a second call gives other children); cell functions derive
+    their per-role streams with this pure form so that calling them twice with the same seeds gives
+    the same numbers.
+    """
+    return [np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, i), pool_size=ss.pool_size)
+            for i in range(int(n))]
 
 
 # ----------------------------------------------------------------------------- one cell (on a worker)
@@ -467,8 +482,10 @@ def run_sweep(
 
         cluster = None
         if scheduler is None:
+            import logging
+
             cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=processes,
-                                   dashboard_address=None)
+                                   dashboard_address=None, silence_logs=logging.ERROR)
             client = Client(cluster)
         else:
             client = Client(scheduler)
@@ -575,15 +592,40 @@ class SweepSpec(pydantic.BaseModel):
         return {k: (v.values() if isinstance(v, GridRange) else list(v)) for k, v in self.grid.items()}
 
 
-def prepare_config_sweep(config: Path | str) -> tuple[Any, Any, SweepCell, dict[str, list[Any]], list[Any]]:
+def parse_overrides(items: Sequence[str] | None) -> dict[str, Any]:
+    """``["formation.n_views=2", 'observation.mode="rendered"']`` → ``{dotted key: value}``.
+
+    Values are read as TOML (numbers, booleans, quoted strings, arrays); a bare word is a string.
+    Raises ``ValueError`` naming ``--set`` for an item without ``=``.
+    """
+    import tomllib
+
+    out: dict[str, Any] = {}
+    for item in items or []:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ValueError(f"--set: expected KEY=VALUE, got {item!r}")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        out[key] = value
+    return out
+
+
+def prepare_config_sweep(config: Path | str, overrides: Mapping[str, Any] | None = None
+                         ) -> tuple[Any, Any, SweepCell, dict[str, list[Any]], list[Any]]:
     """Validate a sweep config and every cell's config; nothing is computed or written.
 
-    Returns ``(module, cfg, cell, grid, inputs)``; raises ``experiments.scenarios.ConfigError``
-    (one line naming the key) when anything is wrong.
+    ``overrides`` (dotted key → value) are applied to the file before validation.  Returns
+    ``(module, cfg, cell, grid, inputs)``; raises ``experiments.scenarios.ConfigError`` (one line
+    naming the key) when anything is wrong.
     """
     from experiments.scenarios import ConfigError, load_config
 
-    module, cfg = load_config(config)
+    overrides = dict(overrides or {})
+    module, cfg = load_config(config, overrides=overrides)
     spec = getattr(cfg, "sweep", None)
     if spec is None:
         raise ConfigError("sweep: missing [sweep] table (cell, trials, grid)")
@@ -602,7 +644,7 @@ def prepare_config_sweep(config: Path | str) -> tuple[Any, Any, SweepCell, dict[
     inputs = []
     for _, params in _cells(garr):
         try:
-            inputs.append(load_config(config, overrides=params)[1])
+            inputs.append(load_config(config, overrides={**overrides, **params})[1])
         except ConfigError as exc:
             raise ConfigError(f"{exc} [in sweep.grid]") from None
     return module, cfg, cell, grid, inputs
@@ -690,6 +732,7 @@ def sweep(
     workers: int = typer.Option(2, "--workers", help="Dask LocalCluster workers (one thread each)."),
     scheduler: str = typer.Option(None, "--scheduler", help="Address of a running Dask scheduler instead of a LocalCluster."),
     no_figures: bool = typer.Option(False, "--no-figures", help="Skip drawing figures."),
+    set_: list[str] = typer.Option(None, "--set", help="Override a config key, KEY=VALUE (TOML value); repeatable."),
 ) -> None:
     """Sweep config keys over a grid × trials on Dask, streaming each cell to DIR/sweep.zarr.
 
@@ -700,8 +743,9 @@ def sweep(
     if workers < 1:
         raise fail(f"--workers: must be >= 1, got {workers}")
     try:
-        module, cfg, cell, grid, inputs = prepare_config_sweep(config)
-    except ConfigError as exc:
+        overrides = parse_overrides(set_)
+        module, cfg, cell, grid, inputs = prepare_config_sweep(config, overrides)
+    except (ConfigError, ValueError) as exc:
         raise fail(str(exc)) from None
     spec = cfg.sweep
     identity = cfg.model_dump_json(exclude={"sweep"})
@@ -711,7 +755,8 @@ def sweep(
     try:
         report = run_sweep(cell, grid, trials=spec.trials, out=out, seed=spec.seed,
                            make_input=lambda params: by_params[_params_key(params)], identity=identity,
-                           attrs={"kind": cfg.kind, "config_toml": config_text},
+                           attrs={"kind": cfg.kind, "config_toml": config_text,
+                                  "overrides": json.dumps(overrides)},
                            workers=workers, scheduler=scheduler, progress=update)
     except ValueError as exc:
         raise fail(str(exc)) from None
