@@ -420,8 +420,8 @@ def _as_cameras(camera, n: int) -> list[PinholeCamera]:
 
 def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence[PinholeCamera],
                 T_CW: ArrayLike, *, ratio: float = 0.6, epipolar_tol_px: float = 1.5,
-                min_views: int = 2, pixel_sigma_px: float = 0.5, flann_trees: int = 4,
-                flann_checks: int = 32) -> Observation:
+                min_views: int = 2, pixel_sigma_px: float = 0.5, guided: bool = False,
+                flann_trees: int = 4, flann_checks: int = 32) -> Observation:
     """Match keypoints across n views of one epoch into multi-view tracks (003 §1.4, eq 2–3).
 
     Every pair of views is matched with :func:`match_pair` (ratio test, one-to-one, epipolar gate
@@ -442,6 +442,8 @@ def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence
         Smallest number of views in a track.
     pixel_sigma_px : float
         Keypoint position noise assumed downstream, recorded in the observation.
+    guided : bool
+        Epipolar-guided ratio test (:func:`match_pair`); default the paper's order.
 
     Returns
     -------
@@ -467,7 +469,8 @@ def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence
         for j in range(i + 1, n):
             Fs[i, j] = fundamental_from_poses(K[i], T[i], K[j], T[j])
             pm[i, j] = match_pair(kps[i], kps[j], ratio=ratio, F_AB=Fs[i, j],
-                                  epipolar_tol_px=epipolar_tol_px, flann_trees=flann_trees,
+                                  epipolar_tol_px=epipolar_tol_px, guided=guided,
+                                  flann_trees=flann_trees,
                                   flann_checks=flann_checks)
     tracks = tracks_from_matches([len(k) for k in kps], pm, min_views=min_views)
     M = len(tracks)

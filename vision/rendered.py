@@ -117,7 +117,7 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
                     detector: str = "sift",
                     ratio: float = 0.6, epipolar_tol_px: float = 1.5, pixel_sigma_px: float = 0.5,
                     min_views: int = 2, truth_tol_px: float = 2.0, foreground_dn: float = 3.0,
-                    detector_options: dict | None = None) -> Observation:
+                    guided: bool = False, detector_options: dict | None = None) -> Observation:
     """Detect, match and label features in already rendered views of one epoch.
 
     Returns an empty, flagged observation (never raises) when the target is in Earth's shadow or seen
@@ -143,7 +143,7 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
         else:
             kps.append(detect(np.zeros((8, 8), np.uint8), detector=detector))
     obs = match_views(kps, cams, T, ratio=ratio, epipolar_tol_px=epipolar_tol_px,
-                      min_views=min_views, pixel_sigma_px=pixel_sigma_px)
+                      min_views=min_views, pixel_sigma_px=pixel_sigma_px, guided=guided)
     if not obs.ok:
         return obs
     return label_tracks(obs, renders, target, q_HT, tol_px=truth_tol_px)
@@ -154,7 +154,8 @@ def observe(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, ta
             sensor: SensorModel | None = None, sun_visible_fraction: float = 1.0,
             detector: str = "sift", ratio: float = 0.6, epipolar_tol_px: float = 1.5,
             pixel_sigma_px: float = 0.5, min_views: int = 2, truth_tol_px: float = 2.0,
-            roi: bool = True, detector_options: dict | None = None) -> Observation:
+            roi: bool = True, guided: bool = False,
+            detector_options: dict | None = None) -> Observation:
     """Rendered-mode observation of one epoch by n cameras.
 
     Parameters
@@ -182,6 +183,8 @@ def observe(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, ta
         Reprojection tolerance of the ground-truth labelling (:func:`label_tracks`).
     roi : bool
         Render only the region of interest.
+    guided : bool
+        Epipolar-guided ratio test (:func:`vision.features.match_pair`).
 
     Returns
     -------
@@ -191,5 +194,5 @@ def observe(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, ta
                            sun_visible_fraction=sun_visible_fraction, roi=roi)
     return observe_renders(renders, target, q_HT, detector=detector, ratio=ratio,
                            epipolar_tol_px=epipolar_tol_px, pixel_sigma_px=pixel_sigma_px,
-                           min_views=min_views, truth_tol_px=truth_tol_px,
+                           min_views=min_views, truth_tol_px=truth_tol_px, guided=guided,
                            detector_options=detector_options)
