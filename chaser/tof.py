@@ -82,7 +82,13 @@ class ExtractionSettings:
     Attributes
     ----------
     grey_threshold_dn : float or None
-        ``I_t``; None: Otsu threshold of the valid amplitudes.
+        ``I_t``; None: ``grey_threshold_frac × W`` with ``W`` the white level (98th percentile of
+        the valid amplitudes, the plate).  (SEEDS_SPEC suggests Otsu; with three populations —
+        dots, body, plate — Otsu lands between any two of them depending on the pixel counts.)
+    grey_threshold_frac : float
+        ``I_t / W`` when ``grey_threshold_dn`` is None.
+    grey_peak_frac : float
+        Strict grey threshold of the hysteresis, ``I_peak = grey_peak_frac × W``.
     n_max_factor : float
         ``N_max = n_max_factor × n_markers × (predicted dot area in pixels)``.
     log_sigma_px : float or None
@@ -92,8 +98,6 @@ class ExtractionSettings:
     log_noise_factor : float
         ``J_peak`` is at least this many robust standard deviations of ``J`` over the valid pixels,
         so a frame without markers does not promote noise to markers.
-    grey_peak_contrast_frac : float
-        ``I_peak = I_t − grey_peak_contrast_frac × (I_background − I_dot)``.
     area_min_frac, area_max_frac : float
         Accepted component size relative to the predicted dot area at the component's range.
     max_eccentricity : float
@@ -108,12 +112,13 @@ class ExtractionSettings:
     """
 
     grey_threshold_dn: float | None = None
+    grey_threshold_frac: float = 0.5
+    grey_peak_frac: float = 0.25
     n_max_factor: float = 5.0
     log_sigma_px: float | None = None
     log_threshold_frac: float = 0.2
     log_peak_frac: float = 0.5
     log_noise_factor: float = 8.0
-    grey_peak_contrast_frac: float = 0.3
     area_min_frac: float = 0.3
     area_max_frac: float = 3.0
     max_eccentricity: float = 0.9
@@ -123,7 +128,8 @@ class ExtractionSettings:
     def __post_init__(self) -> None:
         if self.range_estimator not in ("mean", "plane"):
             raise ValueError(f"range_estimator: must be 'mean' or 'plane', got {self.range_estimator!r}")
-        for key in ("n_max_factor", "log_threshold_frac", "log_peak_frac", "area_max_frac", "max_eccentricity"):
+        for key in ("grey_threshold_frac", "grey_peak_frac", "n_max_factor", "log_threshold_frac", "log_peak_frac",
+                    "area_max_frac", "max_eccentricity"):
             v = getattr(self, key)
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"{key}: must be finite and > 0, got {v!r}")
@@ -206,16 +212,6 @@ def log_kernel(sigma_px: float) -> np.ndarray:
     return s2 * k
 
 
-def _otsu(values: np.ndarray) -> float:
-    """Otsu threshold of non-negative values (OpenCV, on a 16-bit quantisation)."""
-    hi = float(values.max())
-    if hi <= 0:
-        return 0.0
-    q = np.round(values / hi * 65535).astype(np.uint16)[None, :]
-    t, _ = cv2.threshold(q, 0, 65535, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-    return float(t) / 65535 * hi
-
-
 def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
                     settings: ExtractionSettings | None = None) -> MarkerDetections:
     """Extract the dark-marker key points of one TOF frame (000 §2, corrected).
@@ -262,7 +258,9 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     sigma = s.log_sigma_px if s.log_sigma_px is not None else max(dot_px / np.sqrt(2.0), 0.7)
 
     vals = amp[valid]
-    i_t = s.grey_threshold_dn if s.grey_threshold_dn is not None else _otsu(vals)
+    white = float(np.percentile(vals, 98))
+    i_t = s.grey_threshold_dn if s.grey_threshold_dn is not None else s.grey_threshold_frac * white
+    i_peak = min(s.grey_peak_frac * white, i_t)
     cand = valid & (amp <= i_t)
     n_max = int(np.ceil(s.n_max_factor * plate.n_markers * dot_area))
     if cand.sum() > n_max:
@@ -281,10 +279,7 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     j_noise = 1.4826 * float(np.median(np.abs(j_valid - np.median(j_valid))))
     j_t = s.log_threshold_frac * j_max
     j_peak = max(s.log_peak_frac * j_max, s.log_noise_factor * j_noise)
-    bright = vals[vals > i_t]
-    i_bg = float(np.median(bright)) if bright.size else i_t
-    i_dot = float(np.percentile(amp[cand], 5))
-    i_peak = i_t - s.grey_peak_contrast_frac * (i_bg - i_dot)
+    i_bg = white
     thr = ExtractionThresholds(grey=i_t, grey_peak=i_peak, log=j_t, log_peak=j_peak, n_max=n_max,
                                log_sigma_px=sigma)
     if j_max <= 0:
@@ -708,13 +703,15 @@ def weighted_svd_pose(q_C: ArrayLike, p_S: ArrayLike, weights: ArrayLike | None 
 
 
 def verify_labels(model_C: ArrayLike, points_S: ArrayLike, labels: ArrayLike, *, gate_m: float) -> np.ndarray:
-    """Pose check of a labelling (SEEDS_SPEC §1.3.4): prune, re-solve, re-assign.
+    """Pose check of a labelling (SEEDS_SPEC §1.3.4): consensus, re-solve, re-assign.
 
-    While at least three labelled observations remain, fit :func:`weighted_svd_pose` and drop the
-    observation with the largest residual if it exceeds ``gate_m``.  Then predict every marker with
-    that pose and assign observations to predicted markers by linear assignment on the 3-D
-    distance, keeping pairs closer than ``gate_m`` (this recovers markers the matcher left null
-    and removes spurious points it labelled).  Fewer than three consistent matches: all null.
+    Among the labelled observations, every triple of matches gives a pose
+    (:func:`weighted_svd_pose`, all triples in one batch); the pose that brings the most labelled
+    observations within ``gate_m`` of their markers wins (ties: smallest summed residual), and is
+    refitted on those inliers.  Every observation is then assigned to the predicted markers by
+    linear assignment on the 3-D distance, keeping pairs closer than ``gate_m``: this drops
+    spurious points that took a label, repairs swapped labels and recovers markers the matcher
+    left null.  Fewer than three consistent matches: all null.
 
     Parameters
     ----------
@@ -727,6 +724,8 @@ def verify_labels(model_C: ArrayLike, points_S: ArrayLike, labels: ArrayLike, *,
     -------
     (..., n) int ndarray of verified labels (−1 = null).
     """
+    from itertools import combinations
+
     m, p = _check_points(model_C, points_S)
     lab_in = np.asarray(labels, dtype=int)
     if lab_in.shape != p.shape[:-1]:
@@ -735,29 +734,31 @@ def verify_labels(model_C: ArrayLike, points_S: ArrayLike, labels: ArrayLike, *,
         raise ValueError(f"gate_m: must be finite and > 0, got {gate_m!r}")
     n = p.shape[-2]
     flat_p = p.reshape(-1, n, 3)
-    flat_l = lab_in.reshape(-1, n).copy()
+    flat_l = lab_in.reshape(-1, n)
     out = np.full_like(flat_l, -1)
     for b in range(len(flat_p)):
-        lab = flat_l[b]
-        while True:
-            idx = np.flatnonzero(lab >= 0)
-            if idx.size < 3:
-                break
-            fit = weighted_svd_pose(m[lab[idx]], flat_p[b, idx])
-            res = np.linalg.norm(flat_p[b, idx] - (m[lab[idx]] @ fit.R_SC.T + fit.r_CS_S), axis=1)
-            worst = int(np.argmax(res))
-            if res[worst] > gate_m:
-                lab[idx[worst]] = -1
-                continue
-            break
-        if idx.size < 3 or fit.singular_values[1] <= 1e-9 * max(fit.singular_values[0], 1e-300):
+        idx = np.flatnonzero(flat_l[b] >= 0)
+        if idx.size < 3:
             continue
+        obs, mod = flat_p[b, idx], m[flat_l[b, idx]]
+        tri = np.array(list(combinations(range(idx.size), 3)))
+        fits = weighted_svd_pose(mod[tri], obs[tri])
+        pred = np.einsum("tij,mj->tmi", fits.R_SC, mod) + fits.r_CS_S[:, None, :]
+        res = np.linalg.norm(pred - obs, axis=-1)                                   # (triples, m)
+        inl = res <= gate_m
+        proper = fits.singular_values[:, 1] > 1e-6 * fits.singular_values[:, 0]
+        score = np.where(proper, inl.sum(-1) - np.where(inl, res, 0).sum(-1) / (gate_m * idx.size + 1e-300), -1)
+        best = int(np.argmax(score))
+        keep = inl[best]
+        if keep.sum() < 3 or not proper[best]:
+            continue
+        fit = weighted_svd_pose(mod[keep], obs[keep])
         pred = m @ fit.R_SC.T + fit.r_CS_S
         dist = np.linalg.norm(flat_p[b, :, None, :] - pred[None], axis=-1)
-        big = 1e6 * gate_m
-        rows, cols = linear_sum_assignment(np.where(dist <= gate_m, dist, big))
-        keep = dist[rows, cols] <= gate_m
-        out[b, rows[keep]] = cols[keep]
+        rows, cols = linear_sum_assignment(np.where(dist <= gate_m, dist, 1e6 * gate_m))
+        ok = dist[rows, cols] <= gate_m
+        if ok.sum() >= 3:
+            out[b, rows[ok]] = cols[ok]
     return out.reshape(lab_in.shape)
 
 
@@ -827,7 +828,7 @@ def _not_found(reason: str, det: MarkerDetections, labels: np.ndarray | None = N
 def estimate_tof_pose(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *, matcher: str = "mrf",
                       match_settings: MatchSettings | None = None,
                       extraction: ExtractionSettings | None = None, verify: bool = True,
-                      gate_factor: float = 3.0, weighting: str = "inverse_variance") -> TofPoseResult:
+                      gate_factor: float = 2.0, weighting: str = "inverse_variance") -> TofPoseResult:
     """Relative pose of the marker plate from one TOF frame (000 §2–§4, corrected).
 
     Parameters
