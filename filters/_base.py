@@ -23,6 +23,11 @@ from .dynamics import _Inertia
 from .state import FAILURE_NON_FINITE, FAILURE_NOT_PD, FilterState, ProcessNoise
 
 _IDENTITY_Q = np.array([1.0, 0.0, 0.0, 0.0])
+_EYES = {n: np.eye(n) for n in range(1, 16)}
+
+
+def _eye(n: int) -> np.ndarray:
+    return _EYES[n]
 
 
 class AttitudeFilter:
@@ -163,20 +168,30 @@ class AttitudeFilter:
 
     def _finish(self, state: FilterState, *, q, w, P, qc, p, accepted=None, rejected=None,
                 nis=None, t_s=None, t_clone_s=None, check_pd=True) -> FilterState:
-        """Assemble the new state: detect failures, NaN the failed rows, count measurements."""
-        failed = state.failed.copy()
-        reason = state.failure_reason.copy()
-        P = sym(P)
-        finite = (np.isfinite(q).all(1) & np.isfinite(w).all(1) & np.isfinite(P).all((1, 2)))
-        new_nf = ~failed & ~finite
-        reason[new_nf] = FAILURE_NON_FINITE
-        failed |= new_nf
+        """Assemble the new state: detect failures, NaN the failed rows, count measurements.
+
+        With ``check_pd`` (after updates) P is symmetrised and its core block Cholesky-tested; a
+        prediction (``check_pd=False``) only tests that the estimates stayed finite, since
+        ``F P Fᵀ + Q`` of a positive-definite P is positive definite.
+        """
+        failed = state.failed
+        reason = state.failure_reason
         if check_pd:
+            P = sym(P)
+            finite = np.isfinite(q).all(1) & np.isfinite(w).all(1)
             nc = self._n_core
-            pd = positive_definite(P[:, :nc, :nc])
-            new_pd = ~failed & ~pd
-            reason[new_pd] = FAILURE_NOT_PD
-            failed |= new_pd
+            ok = finite & positive_definite(P[:, :nc, :nc])
+        else:
+            ok = np.isfinite(q).all(1) & np.isfinite(w).all(1)
+        new = ~failed & ~ok
+        if new.any():
+            failed = failed | new
+            reason = reason.copy()
+            reason[new & ~ok] = FAILURE_NOT_PD if check_pd else FAILURE_NON_FINITE
+            if check_pd:
+                nf = new & ~(np.isfinite(q).all(1) & np.isfinite(w).all(1)
+                             & np.isfinite(P).all((1, 2)))
+                reason[nf] = FAILURE_NON_FINITE
         if failed.any():
             fm = failed[:, None]
             q = np.where(fm, np.nan, q)
@@ -186,12 +201,15 @@ class AttitudeFilter:
                 qc = np.where(fm, np.nan, qc)
             if p is not None:
                 p = np.where(fm, np.nan, p)
-        n_acc = state.n_accepted + (0 if accepted is None else (accepted & ~failed))
-        n_rej = state.n_rejected + (0 if rejected is None else (rejected & ~failed))
-        consec = state.n_consecutive_rejected
-        n_resets = state.n_resets
+        n_acc, n_rej = state.n_accepted, state.n_rejected
+        consec, n_resets = state.n_consecutive_rejected, state.n_resets
+        last_nis = state.last_nis
         if rejected is not None:
-            consec = np.where(rejected & ~failed, consec + 1, np.where(accepted, 0, consec))
+            acc = accepted & ~failed
+            rej = rejected & ~failed
+            n_acc = n_acc + acc
+            n_rej = n_rej + rej
+            consec = np.where(rej, consec + 1, np.where(acc, 0, consec))
             if self.reset_after_rejections is not None:
                 reset = consec >= self.reset_after_rejections
                 if reset.any():
@@ -203,7 +221,9 @@ class AttitudeFilter:
                     P[reset, :nc, :nc] = state.P_reset[reset]
                     consec = np.where(reset, 0, consec)
                     n_resets = n_resets + reset
-        last_nis = np.full(q.shape[0], np.nan) if nis is None else np.where(failed, np.nan, nis)
+            last_nis = np.where(failed, np.nan, nis)
+        elif nis is None and check_pd:
+            last_nis = np.full(q.shape[0], np.nan)
         return FilterState(
             t_s=state.t_s if t_s is None else float(t_s), q_NT=q, omega_TN_T=w, P=P,
             inertia_ratios=p, q_NT_clone=qc,
@@ -223,19 +243,25 @@ class AttitudeFilter:
             z = np.broadcast_to(z, (M, width))
         if z.shape != (M, width):
             raise ValueError(f"{name}: expected shape ({width},) or ({M}, {width}), got {z.shape}")
-        valid = np.all(np.isfinite(z), axis=1)
+        valid = np.isfinite(z).all(1)
         if width == 4:
-            nz = np.linalg.norm(np.where(valid[:, None], z, 1.0), axis=1)
-            valid &= nz > 1e-6
-            z = np.where(valid[:, None], z / np.where(valid, nz, 1.0)[:, None], _IDENTITY_Q)
+            if not valid.all():
+                z = np.where(valid[:, None], z, _IDENTITY_Q)
+            nz = np.sqrt(np.sum(z * z, 1, keepdims=True))
+            small = nz[:, 0] <= 1e-6
+            if small.any():
+                valid = valid & ~small
+                z = np.where(small[:, None], _IDENTITY_Q, z)
+                nz = np.where(small[:, None], 1.0, nz)
+            z = z / nz
         return z, valid
 
     @staticmethod
     def _cov_rows(cov: ArrayLike, M: int, name: str) -> tuple[np.ndarray, np.ndarray]:
         cov = np.asarray(cov, dtype=float)
         cov = as_batch(cov, M, (3, 3), name)
-        finite = np.all(np.isfinite(cov), axis=(1, 2))
-        cov = np.where(finite[:, None, None], sym(cov), np.eye(3))
+        finite = np.isfinite(cov).all((1, 2))
+        cov = sym(cov) if finite.all() else np.where(finite[:, None, None], sym(cov), np.eye(3))
         return cov, finite
 
     @staticmethod
@@ -260,16 +286,16 @@ class AttitudeFilter:
         n = P.shape[-1]
         if H is None:
             PHt = P[:, :, :m]
-            S = sym(P[:, :m, :m] + R)
+            S = P[:, :m, :m] + R  # P and R symmetric
         else:
-            PHt = P @ np.swapaxes(H, -1, -2)
+            PHt = P @ H.mT
             S = sym(H @ PHt + R)
         if m == 3:
             Sinv, det = inv3(S)
-            good = np.isfinite(det) & (det > 0)
+            good = det > 0  # False for NaN too
         else:
-            good = np.all(np.isfinite(S), axis=(1, 2))
-            Sg = np.where(good[:, None, None], S, np.eye(m))
+            good = np.isfinite(S).all((1, 2))
+            Sg = S if good.all() else np.where(good[:, None, None], S, np.eye(m))
             try:
                 Sinv = np.linalg.inv(Sg)
             except np.linalg.LinAlgError:
@@ -284,22 +310,23 @@ class AttitudeFilter:
             nis = (r[:, None, :] @ Sinv @ r[:, :, None])[:, 0, 0]
         else:
             r3 = (G @ r[:, :, None])[:, :, 0]
-            S3inv, det3 = inv3(G @ S @ np.swapaxes(G, -1, -2))
-            good &= np.isfinite(det3) & (det3 > 0)
+            S3inv, det3 = inv3(G @ S @ G.mT)
+            good &= det3 > 0
             nis = (r3[:, None, :] @ S3inv @ r3[:, :, None])[:, 0, 0]
-        nis = np.where(valid & good, nis, np.nan)
-        passed = valid & good & (nis <= self.gate_threshold)
-        rejected = valid & good & ~passed
+        use = valid & good
+        passed = use & (nis <= self.gate_threshold)
+        rejected = use & ~passed
+        nis = np.where(use, nis, np.nan)
         K = PHt @ Sinv
-        K = np.where(passed[:, None, None], K, 0.0)
+        if not passed.all():
+            K = np.where(passed[:, None, None], K, 0.0)
         dx = (K @ r[:, :, None])[:, :, 0]
         if H is None:
-            IKH = np.zeros((M, n, n))
-            IKH[:] = np.eye(n)
+            IKH = np.tile(_eye(n), (M, 1, 1))
             IKH[:, :, :m] -= K
         else:
-            IKH = np.eye(n) - K @ H
-        Pn = IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
+            IKH = _eye(n) - K @ H
+        Pn = IKH @ P @ IKH.mT + K @ R @ K.mT
         return dx, Pn, passed, rejected, nis
 
     @staticmethod
@@ -310,8 +337,8 @@ class AttitudeFilter:
         dq_N = qmul(qmul(q_now, dq_H), conj(q_prev))
         if cov_side == "right":
             dR = matrix_from_unit_quat(dq_H)
-            cov_H = dR @ cov_H @ np.swapaxes(dR, -1, -2)
-        cov_N = R_NH_now @ cov_H @ np.swapaxes(R_NH_now, -1, -2)
+            cov_H = dR @ cov_H @ dR.mT
+        cov_N = R_NH_now @ cov_H @ R_NH_now.mT
         return dq_N, cov_N
 
     # ------------------------------------------------------------------ public evaluation

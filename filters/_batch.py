@@ -167,7 +167,7 @@ def inv3(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def sym(P: np.ndarray) -> np.ndarray:
     """Symmetric part ``(P + Pᵀ)/2`` over the last two axes."""
-    return 0.5 * (P + np.swapaxes(P, -1, -2))
+    return 0.5 * (P + P.mT)
 
 
 def positive_definite(P: np.ndarray) -> np.ndarray:

@@ -140,16 +140,16 @@ class AttitudeEKF(AttitudeFilter):
         pn = self.process_noise
         Xi = xi_matrix(q)
         Qc = np.zeros((M, 7, 7))
-        Qc[:, :4, :4] = 0.25 * pn.attitude_psd_rad2_s * (Xi @ np.swapaxes(Xi, -1, -2))
+        Qc[:, :4, :4] = 0.25 * pn.attitude_psd_rad2_s * (Xi @ Xi.mT)
         Qc[:, 4:, 4:] = pn.rate_psd_rad2_s3 * np.eye(3)
         Qd = dt * Qc
         if n == 7:
-            Pn = F @ P @ np.swapaxes(F, -1, -2) + Qd
+            Pn = F @ P @ F.mT + Qd
         else:
             Pn = np.empty_like(P)
-            Pn[:, :7, :7] = F @ P[:, :7, :7] @ np.swapaxes(F, -1, -2) + Qd
+            Pn[:, :7, :7] = F @ P[:, :7, :7] @ F.mT + Qd
             Pn[:, :7, 7:] = F @ P[:, :7, 7:]
-            Pn[:, 7:, :7] = np.swapaxes(Pn[:, :7, 7:], -1, -2)
+            Pn[:, 7:, :7] = Pn[:, :7, 7:].mT
             Pn[:, 7:, 7:] = P[:, 7:, 7:]
         return self._finish(state, q=q1, w=w1, P=Pn, qc=qc, p=None, t_s=state.t_s + dt, check_pd=False)
 
@@ -177,8 +177,8 @@ class AttitudeEKF(AttitudeFilter):
         q, w, P, qc, _ = self._sanitized(state)
         z = np.where(np.sum(z * q, axis=1, keepdims=True) < 0, -z, z)
         Lq = left_matrix(q)
-        R4 = self._complete(Lq @ self._noise_moments(cov) @ np.swapaxes(Lq, -1, -2), q)
-        G = 2.0 * np.swapaxes(xi_matrix(q), -1, -2)
+        R4 = self._complete(Lq @ self._noise_moments(cov) @ Lq.mT, q)
+        G = 2.0 * xi_matrix(q).mT
         dx, Pn, acc, rej, nis = self._gated_update(P, z - q, None, R4, valid, G=G)
         return self._apply(state, q, w, qc, dx, Pn, acc, rej, nis)
 
@@ -227,7 +227,7 @@ class AttitudeEKF(AttitudeFilter):
         H[:, :, :4] = right_matrix(conj(qc))
         H[:, :, 7:] = left_matrix(q) @ _CONJ_DIAG
         # the three rotational components of z − h: z ≈ h + ½ Rm(h)[:, 1:] v  ⇒  v ≈ G (z − h)
-        G = 2.0 * np.swapaxes(right_matrix(h)[:, :, 1:], -1, -2)
+        G = 2.0 * right_matrix(h)[:, :, 1:].mT
         r3 = (G @ (z - h)[:, :, None])[:, :, 0]
         dx, Pn, acc, rej, nis = self._gated_update(P, r3, G @ H, covN, valid)
         new = self._apply(state, q, w, qc, dx, Pn, acc, rej, nis)
@@ -273,9 +273,9 @@ class AttitudeEKF(AttitudeFilter):
         q, _, P, _, _ = self._sanitized(state)
         M = state.n_trials
         Gm = np.zeros((M, 6, 7))
-        Gm[:, :3, :4] = 2.0 * np.swapaxes(xi_matrix(q), -1, -2)
+        Gm[:, :3, :4] = 2.0 * xi_matrix(q).mT
         Gm[:, 3:, 4:] = np.eye(3)
-        C = sym(Gm @ P[:, :7, :7] @ np.swapaxes(Gm, -1, -2))
+        C = sym(Gm @ P[:, :7, :7] @ Gm.mT)
         return np.where(state.failed[:, None, None], np.nan, C)
 
 

@@ -115,7 +115,7 @@ class MEKF(AttitudeFilter):
         if self._ratios:
             qdiag.append(np.full(2, pn.inertia_ratio_psd_1_s))
         Qc = np.diag(np.concatenate(qdiag))
-        PhiT = np.swapaxes(Phi, -1, -2)
+        PhiT = Phi.mT
         Qd = dt * Qc
         if P.shape[-1] == nc:
             Pn = Phi @ P @ PhiT + Qd
@@ -123,7 +123,7 @@ class MEKF(AttitudeFilter):
             Pn = np.empty_like(P)
             Pn[:, :nc, :nc] = Phi @ P[:, :nc, :nc] @ PhiT + Qd
             Pn[:, :nc, nc:] = Phi @ P[:, :nc, nc:]
-            Pn[:, nc:, :nc] = np.swapaxes(Pn[:, :nc, nc:], -1, -2)
+            Pn[:, nc:, :nc] = Pn[:, :nc, nc:].mT
             Pn[:, nc:, nc:] = P[:, nc:, nc:]
         return self._finish(state, q=q1, w=w1, P=Pn, qc=qc, p=p, t_s=state.t_s + dt, check_pd=False)
 
@@ -201,7 +201,7 @@ class MEKF(AttitudeFilter):
             qcn = qmul(qc, qexp_half(dac))
             qcn /= np.sqrt(np.sum(qcn * qcn, 1, keepdims=True))
             G[:, nc:, nc:] -= 0.5 * skew(dac)
-        Pn = G @ Pn @ np.swapaxes(G, -1, -2)
+        Pn = G @ Pn @ G.mT
         return self._finish(state, q=qn, w=wn, P=Pn, qc=qcn, p=pn, accepted=acc, rejected=rej,
                             nis=nis)
 
