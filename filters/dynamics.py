@@ -170,13 +170,20 @@ def propagate_rk4(
     Returns
     -------
     q_NT : (M, 4) array
-        Propagated attitude, renormalised (FLAG P003-14b).
+        Propagated attitude, renormalised (FLAG P003-14b; the Jacobian is that of the map before
+        renormalisation, as in 003's filter).
     omega_TN_T : (M, 3) array
     Phi : (M, n, n) array or None
         Transition matrix over the whole step.
     """
     q = np.asarray(q_NT, dtype=float)
     w = np.asarray(omega_TN_T, dtype=float)
+    if q.ndim != 2 or q.shape[1] != 4:
+        raise ValueError(f"q_NT: expected shape (M, 4), got {q.shape}")
+    if w.shape != (q.shape[0], 3):
+        raise ValueError(f"omega_TN_T: expected shape ({q.shape[0]}, 3), got {w.shape}")
+    if inertia_ratios is not None and np.shape(inertia_ratios) != (q.shape[0], 2):
+        raise ValueError(f"inertia_ratios: expected shape ({q.shape[0]}, 2), got {np.shape(inertia_ratios)}")
     if (J_kg_m2 is None) == (inertia_ratios is None):
         raise ValueError("J_kg_m2/inertia_ratios: give exactly one of them")
     if n_substeps < 1:
@@ -185,7 +192,7 @@ def propagate_rk4(
         raise ValueError(f"jacobian: expected 'quaternion', 'error' or None, got {jacobian!r}")
     if jacobian == "quaternion" and inertia_ratios is not None:
         raise ValueError("jacobian: 'quaternion' Jacobian is for a known inertia tensor only")
-    inertia = _Inertia(J=None if J_kg_m2 is None else np.asarray(J_kg_m2, dtype=float))
+    inertia = _Inertia(J=None if J_kg_m2 is None else check_inertia(J_kg_m2, name="J_kg_m2"))
     j = None
     n_ratio = 0
     if inertia_ratios is not None:

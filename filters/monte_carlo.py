@@ -463,6 +463,8 @@ def run_monte_carlo(
     ratios = estimator.estimates_inertia_ratios
     if ratios and inertia_ratios_true is None:
         raise ValueError("inertia_ratios_true: needed to evaluate the inertia-ratio filter")
+    if not ratios and initial_inertia_ratios is not None:
+        raise ValueError("initial_inertia_ratios: this estimator has no inertia-ratio state")
     rngs = _trial_generators(rng, M)
     q0, w0 = draw_initial_estimates(q_true[:, 0], w_true[:, 0], sigma_q=sigma_q,
                                     sigma_omega_rad_s=sigma_omega_rad_s, rngs=rngs)

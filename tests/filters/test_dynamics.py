@@ -121,3 +121,7 @@ def test_bad_arguments_raise_naming_the_parameter():
         propagate_rk4(q0, w0, 0.1, J_kg_m2=J_KG_M2, jacobian="exact")
     with pytest.raises(ValueError, match="J_kg_m2"):
         inertia_ratios_from_inertia(J_FULL)
+    with pytest.raises(ValueError, match="q_NT"):
+        propagate_rk4(q0[0], w0[0], 0.1, J_kg_m2=J_KG_M2)
+    with pytest.raises(ValueError, match="inertia_ratios"):
+        propagate_rk4(q0, w0, 0.1, inertia_ratios=[0.8, 0.6])

@@ -124,3 +124,26 @@ def test_inertia_ratio_mekf_recovers_ratios_within_1_percent_after_120s(truth_12
         rel = np.abs(r.inertia_ratios_est[:, -1] / RATIOS_TRUE - 1.0)
         assert rel.max() < 0.01
         assert r.fraction_converged == 1.0
+
+
+def test_bad_monte_carlo_input_raises_naming_the_parameter(truth_40s):
+    t, q, w = truth_40s
+    F = MEKF(J_kg_m2=J_KG_M2)
+    with pytest.raises(ValueError, match="estimator"):
+        run_monte_carlo(object(), t_s=t, q_NT_true=q, omega_TN_T_true=w)
+    with pytest.raises(ValueError, match="n_trials"):
+        run_monte_carlo(F, t_s=t, q_NT_true=q, omega_TN_T_true=w, n_trials=0)
+    with pytest.raises(ValueError, match="q_NT_true"):
+        run_monte_carlo(F, t_s=t, q_NT_true=q[:-1], omega_TN_T_true=w, n_trials=2)
+    with pytest.raises(ValueError, match="initial_inertia_ratios"):
+        run_monte_carlo(F, t_s=t, q_NT_true=q, omega_TN_T_true=w, n_trials=2,
+                        initial_inertia_ratios=RATIOS_TRUE)
+    with pytest.raises(ValueError, match="inertia_ratios_true"):
+        run_monte_carlo(MEKF(J_kg_m2=J_KG_M2, estimate_inertia_ratios=True), t_s=t, q_NT_true=q,
+                        omega_TN_T_true=w, n_trials=2)
+    with pytest.raises(ValueError, match="missing_fraction"):
+        MeasurementModel(missing_fraction=1.2)
+    with pytest.raises(ValueError, match="kind"):
+        MeasurementModel(kind="relative")
+    with pytest.raises(ValueError, match="outlier_angle_deg"):
+        MeasurementModel(outlier_angle_deg=(0.0, 200.0))
