@@ -9,7 +9,7 @@ Truth
     (:func:`orbits.cw.propagate`).  The Sun is fixed in N (its H direction turns with the orbit);
     the target is in Earth's shadow when :func:`orbits.environment.illumination_fraction` says so.
 Each epoch
-    the qualifying observers are selected (:func:`select_observers`), each camera points at the
+    the selected observers' cameras point at the
     target, the epoch is observed and triangulated, associated with the previous epoch and
     registered (:mod:`experiments.formation_pipeline`); the increment (with its covariance) updates
     the EKF/MEKF by stochastic cloning (:meth:`filters.AttitudeEKF.update_increment`).  An epoch
@@ -19,11 +19,12 @@ Each epoch
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
+from scipy.optimize import linear_sum_assignment
 
 from attitude.quaternion import (
     matrix_from_quat,
@@ -44,13 +45,16 @@ from experiments.formation_pipeline import (
 )
 from experiments.sweep import Metric, SweepCell, child_seeds
 from filters import convergence_time, hill_frame_rotation
+from formation.constraints import ObservationConstraints, evaluate
 from formation.geometry import look_at, symmetric_views
-from orbits.cw import mean_motion, propagate
+from formation.reconfiguration import drift_free_slot_states, plan
+from formation.selection import select_observers
+from orbits.cw import apply_impulse, mean_motion, propagate, two_impulse_transfer
 from orbits.environment import illumination_fraction
 from orbits.two_body import R_EARTH_M
 
-__all__ = ["observer_positions", "min_range_m", "select_observers", "closed_loop", "closed_loop_cell",
-           "closed_loop_sweep_cell", "AU_M"]
+__all__ = ["observer_states", "constraints", "ObserverPlan", "plan_observers", "closed_loop",
+           "closed_loop_cell", "closed_loop_sweep_cell", "AU_M"]
 
 AU_M = 1.495978707e11
 
@@ -60,70 +64,138 @@ def orbit_rate(cfg: Config) -> float:
     return float(mean_motion(R_EARTH_M + 1e3 * cfg.formation.orbit_altitude_km))
 
 
-def observer_positions(cfg: Config, t_s: np.ndarray) -> tuple[list[str], np.ndarray]:
-    """Names and positions ``r_SiT_H (S, T, 3)`` of the candidate observers, m."""
+def observer_states(cfg: Config, t_s: np.ndarray) -> tuple[list[str], np.ndarray]:
+    """Names and CW states ``x_SiT_H (S, T, 6)`` of the candidate observers (m, m/s).
+
+    The symmetric cone is station-kept (zero velocity in H); CW candidates coast on their orbits.
+    """
     f = cfg.formation
     if f.geometry == "symmetric":
         r = symmetric_views(int(f.n_views), float(f.distance_m), float(f.axis_angle_deg)).r_CT_H
-        names = [f"view {i}" for i in range(len(r))]
-        return names, np.broadcast_to(r[:, None, :], (len(r), t_s.size, 3)).copy()
+        x = np.concatenate([r, np.zeros_like(r)], -1)
+        return [f"view {i}" for i in range(len(r))], np.broadcast_to(x[:, None, :], (len(r), t_s.size, 6)).copy()
     x0 = np.array([[*s.r_H_m, *s.v_H_m_s] for s in f.spacecraft])
-    x = propagate(x0, t_s, orbit_rate(cfg))
-    return [s.name for s in f.spacecraft], x[..., :3]
+    return [s.name for s in f.spacecraft], propagate(x0, t_s, orbit_rate(cfg))
 
 
-def min_range_m(cfg: Config, target_radius_m: float) -> float:
-    """``d_min`` of 003 eq (1) with λ = 1.1 (FLAG P003-1), unless the config gives one."""
-    if cfg.formation.d_min_m is not None:
-        return float(cfg.formation.d_min_m)
-    return 1.1 * target_radius_m / np.tan(0.5 * np.deg2rad(cfg.camera.fov_deg))
+def constraints(cfg: Config, target_radius_m: float) -> ObservationConstraints:
+    """003 §1.2 observation constraints of the config (:class:`formation.constraints.ObservationConstraints`)."""
+    f = cfg.formation
+    return ObservationConstraints(
+        fov_rad=float(np.deg2rad(cfg.camera.fov_deg)), target_radius_m=float(target_radius_m),
+        d_max_m=f.d_max_m, d_min_form="tan", d_min_lambda=f.d_min_lambda,
+        pointing_max_rad=float(np.deg2rad(f.max_pointing_deg)),
+        axis_angle_min_rad=float(np.deg2rad(f.axis_angle_min_deg)),
+        axis_angle_max_rad=float(np.deg2rad(f.axis_angle_max_deg)), comm_range_m=f.max_comm_range_m,
+        sun_exclusion_rad=float(np.deg2rad(f.sun_exclusion_deg)), keep_out_radius_m=f.keep_out_radius_m)
 
 
-def select_observers(r_H: np.ndarray, previous: np.ndarray | None, *, d_min_m: float, d_max_m: float,
-                     max_comm_range_m: float, max_active: int, min_active: int,
-                     axis_angle_range_deg: tuple[float, float] = (2.0, 60.0)) -> tuple[np.ndarray, str]:
-    """Observers to activate at one epoch (003 §1.2 constraints ①, ③, ④; ② holds by pointing).
+@dataclass(frozen=True)
+class ObserverPlan:
+    """Observers over the run.
 
-    Qualifying: range in ``(d_min, d_max)``.  Among subsets of ``min_active``..``max_active``
-    qualifying observers whose pairwise lines of sight to the target differ by an angle inside
-    ``axis_angle_range_deg`` (so the views can be matched) and whose separations are within the
-    communication range, keep the previous set if it is still valid, else take the largest set,
-    ties broken by the smaller mean range.
-
-    Returns ``(active (S,) bool, reason)`` with ``reason = ""`` when a set was found.
+    Attributes
+    ----------
+    names : list of str
+    x_H : ndarray (S, T, 6)
+        CW states (after any reconfiguration), m and m/s.
+    active : ndarray (T, S) bool
+        Selected observers (:func:`formation.selection.select_observers`).
+    reason : ndarray (T,) object
+        Why no set was selected at an epoch ("" otherwise).
+    dv_m_s : ndarray (S,)
+        Δv spent by each observer in the reconfiguration.
+    reconfiguration : dict
+        Start time, duration, Δv, solver status and success of the reconfiguration (empty if none).
     """
-    S = r_H.shape[0]
-    d = np.linalg.norm(r_H, axis=-1)
-    ok = (d > d_min_m) & (d < d_max_m)
-    cand = np.flatnonzero(ok)
-    if cand.size < min_active:
-        return np.zeros(S, bool), f"{cand.size} observers within range ({d_min_m:.0f}-{d_max_m:.0f} m)"
-    u = r_H / d[:, None]
-    lo, hi = np.deg2rad(axis_angle_range_deg[0]), np.deg2rad(axis_angle_range_deg[1])
 
-    def valid(sub: tuple[int, ...]) -> bool:
-        for i, j in itertools.combinations(sub, 2):
-            ang = np.arccos(np.clip(u[i] @ u[j], -1, 1))
-            if not lo <= ang <= hi or np.linalg.norm(r_H[i] - r_H[j]) > max_comm_range_m:
-                return False
-        return True
+    names: list[str]
+    x_H: np.ndarray
+    active: np.ndarray
+    reason: np.ndarray
+    dv_m_s: np.ndarray
+    reconfiguration: dict
 
-    if previous is not None and previous.sum() >= min_active and np.all(ok[previous]):
-        sub = tuple(np.flatnonzero(previous))
-        if len(sub) == min(max_active, cand.size) and valid(sub):
-            return previous.copy(), ""
-    for size in range(min(max_active, cand.size), min_active - 1, -1):
-        best = None
-        for sub in itertools.combinations(cand.tolist(), size):
-            if valid(sub):
-                score = float(np.mean(d[list(sub)]))
-                if best is None or score < best[0]:
-                    best = (score, sub)
-        if best is not None:
-            act = np.zeros(S, bool)
-            act[list(best[1])] = True
-            return act, ""
-    return np.zeros(S, bool), "no observer set satisfies the line-of-sight angle and communication constraints"
+
+def _select(cfg: Config, con: ObservationConstraints, x: np.ndarray, sun_H: np.ndarray, lit: np.ndarray):
+    r = np.swapaxes(x[..., :3], 0, 1)  # (T, S, 3)
+    ev = evaluate(con, r, sun_H=sun_H, target_lit=lit > 0)
+    f = cfg.formation
+    k = min(f.max_active, r.shape[1])
+    tl = select_observers(ev, r, k)
+    active = tl.active.copy()
+    short = tl.short.copy()
+    if f.min_active < k and short.any():
+        tl2 = select_observers(ev, r, f.min_active)
+        use = short & ~tl2.short
+        active[use] = tl2.active[use]
+        short &= tl2.short
+    reason = np.where(short, np.where(lit > 0, "no observer set satisfies the 003 §1.2 constraints",
+                                      "target in Earth shadow"), "")
+    return active, short, reason.astype(object)
+
+
+def _with_impulses(x0: np.ndarray, times: np.ndarray, dv: np.ndarray, t_rel: np.ndarray, n: float) -> np.ndarray:
+    """CW states ``(m, len(t_rel), 6)`` of spacecraft starting at ``x0 (m, 6)`` with impulses ``dv (m, M, 3)``
+    at ``times (M,)`` (applied at the node; ``t_rel >= 0``)."""
+    states = [apply_impulse(x0, dv[:, 0])]
+    for j in range(1, len(times)):
+        prev = propagate(states[-1], np.array([times[j] - times[j - 1]]), n)[:, 0]
+        states.append(apply_impulse(prev, dv[:, j]))
+    out = np.empty((x0.shape[0], t_rel.size, 6))
+    seg = np.searchsorted(times, t_rel, side="right") - 1
+    for j in np.unique(seg):
+        sel = seg == j
+        out[:, sel] = propagate(states[j], t_rel[sel] - times[j], n)
+    return out
+
+
+def plan_observers(cfg: Config, t: np.ndarray, target_radius_m: float, sun_H: np.ndarray,
+                   lit: np.ndarray) -> ObserverPlan:
+    """Selection over the whole run, with one minimum-fuel reconfiguration when no set qualifies.
+
+    The symmetric cone is the formation itself: all its views are active.  For CW candidates the
+    observers are selected at every epoch; at the first epoch (in sunlight) where no set of
+    ``min_active`` qualifies, ``max_active`` candidates (chosen by the Hungarian assignment on the
+    two-impulse cost) are moved by :func:`formation.reconfiguration.plan` to the slots of the
+    symmetric cone at ``distance_m`` / ``axis_angle_deg`` within ``reconfiguration_time_s``, and
+    the selection is repeated on the new trajectories.
+    """
+    names, x = observer_states(cfg, t)
+    S = len(names)
+    dv = np.zeros(S)
+    if cfg.formation.geometry == "symmetric":
+        return ObserverPlan(names, x, np.ones((t.size, S), bool), np.array([""] * t.size, dtype=object), dv, {})
+    con = constraints(cfg, target_radius_m)
+    active, short, reason = _select(cfg, con, x, sun_H, lit)
+    info: dict = {}
+    f = cfg.formation
+    gap = np.flatnonzero(short & (lit > 0))
+    if f.reconfigure and gap.size:
+        k0 = int(gap[0])
+        n = orbit_rate(cfg)
+        k = min(f.max_active, S)
+        slots_r = symmetric_views(k, float(f.distance_m), float(f.axis_angle_deg)).r_CT_H
+        slots = drift_free_slot_states(slots_r, n)
+        x0 = x[:, k0]
+        tr = two_impulse_transfer(x0[:, None, :], slots[None, :, :], f.reconfiguration_time_s, n)
+        cost = np.where(tr.ok, tr.total_dv_m_s, 1e9)
+        rows, _ = linear_sum_assignment(cost)
+        movers = np.sort(rows)
+        others = np.setdiff1d(np.arange(S), movers)
+        p = plan(x0[movers], slots, n=n, tf_s=f.reconfiguration_time_s, dv_max_m_s=f.dv_max_m_s,
+                 keep_out_radius_m=f.keep_out_radius_m, others_x0_H=x0[others] if others.size else None)
+        info = {"start_s": float(t[k0]), "duration_s": f.reconfiguration_time_s,
+                "movers": [names[i] for i in movers], "dv_total_m_s": p.dv_total_m_s,
+                "solver_status": p.status, "success": bool(p.success)}
+        if p.success:
+            x = x.copy()
+            x[movers, k0:] = _with_impulses(x0[movers], p.impulse_times_s, p.impulses_H, t[k0:] - t[k0], n)
+            dv[movers] = p.dv_per_spacecraft_m_s
+            active, short, reason = _select(cfg, con, x, sun_H, lit)
+            during = (t >= t[k0]) & (t < t[k0] + f.reconfiguration_time_s)
+            reason = np.where(short & during, "reconfiguring", reason).astype(object)
+    return ObserverPlan(names, x, active, reason, dv, info)
 
 
 def _camera_poses(r_H: np.ndarray) -> np.ndarray:
@@ -147,16 +219,17 @@ def closed_loop(cfg: Config, seed_seq: np.random.SeedSequence, *,
     R_NH = hill_frame_rotation(t, n)
     q_NH = quat_from_matrix(R_NH)
     q_HT = quat_multiply(quat_conjugate(q_NH), q_NT)
-    names, r = observer_positions(cfg, t)
-    S = len(names)
     camera = make_camera(cfg)
     target = load_target(cfg)
-    d_min = min_range_m(cfg, target.radius_m)
     sun_N = np.asarray(cfg.observation.sun_H, dtype=float)
     sun_N = sun_N / np.linalg.norm(sun_N)
     r_chief_N = (R_NH @ np.array([R_EARTH_M + 1e3 * cfg.formation.orbit_altitude_km, 0.0, 0.0]))
     lit = illumination_fraction(r_chief_N, sun_N * AU_M)
     sun_H = np.einsum("tji,j->ti", R_NH, sun_N)
+    obs_plan = plan_observers(cfg, t, target.radius_m, sun_H, lit)
+    names = obs_plan.names
+    r = obs_plan.x_H[..., :3]
+    S = len(names)
 
     s_init, s_obs, s_reg = child_seeds(seed_seq, 3)
     obs_rngs = np.random.default_rng(s_obs).spawn(T)
@@ -192,13 +265,7 @@ def closed_loop(cfg: Config, seed_seq: np.random.SeedSequence, *,
     for k in range(T):
         if k > 0:
             state = filt.predict(state, t[k] - t[k - 1])
-        if cfg.formation.geometry == "symmetric":  # the cone is the formation: every view is active
-            act, why = np.ones(S, bool), ""
-        else:
-            act, why = select_observers(r[:, k], prev_active, d_min_m=d_min, d_max_m=cfg.formation.d_max_m,
-                                        max_comm_range_m=cfg.formation.max_comm_range_m,
-                                        max_active=cfg.formation.max_active,
-                                        min_active=cfg.formation.min_active)
+        act, why = obs_plan.active[k], str(obs_plan.reason[k])
         active[k] = act
         frame = None
         if act.sum() >= 2:
@@ -256,6 +323,7 @@ def closed_loop(cfg: Config, seed_seq: np.random.SeedSequence, *,
                                                           "long_name": "increment sigma given to the filter"}),
             "active": (("time_s", "spacecraft"), active),
             "r_H_m": (("spacecraft", "time_s", "axis"), r, {"units": "m"}),
+            "dv_m_s": ("spacecraft", obs_plan.dv_m_s, {"units": "m/s", "long_name": "reconfiguration delta-v"}),
             "illumination": ("time_s", lit, {"units": "1"}),
             "n_tracks": ("time_s", n_tracks, {"units": "1"}),
             "n_points": ("time_s", n_points, {"units": "1"}),
@@ -285,6 +353,8 @@ def closed_loop(cfg: Config, seed_seq: np.random.SeedSequence, *,
         "final_rms_rate_error_deg_s": float(np.sqrt(np.nanmean(rate_err[tail] ** 2))),
         "median_increment_error_deg": float(np.nanmedian(inc_err)) if used.any() else float("nan"),
         "median_tracks_per_epoch": float(np.median(n_tracks)),
+        "epochs_without_observer_set": int(np.sum(~obs_plan.active.any(axis=1))),
+        "reconfiguration": obs_plan.reconfiguration,
     }
     return ds, summary
 

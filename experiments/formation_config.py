@@ -127,12 +127,19 @@ class FormationConfig(_Model):
     spacecraft: list[SpacecraftConfig] = Field(default_factory=list, description="cw geometry: candidates")
     orbit_altitude_km: float = Field(870.0, gt=150.0, lt=40000.0, description="target's circular orbit")
     max_active: int = Field(3, ge=2, le=12, description="observers used at once (selection)")
-    min_active: int = Field(2, ge=2, le=12, description="fewer qualifying observers trigger reconfiguration")
-    d_min_m: float | None = Field(None, gt=0, description="minimum range; default from 003 eq (1)")
+    min_active: int = Field(2, ge=2, le=12, description="fallback set size when no max_active set qualifies")
+    d_min_lambda: float = Field(1.1, gt=0, le=10.0, description="λ of 003 eq (1) (FLAG P003-1 suggests 1.1)")
     d_max_m: float = Field(150.0, gt=0, description="maximum useful range (003 §1.2)")
-    max_pointing_deg: float = Field(10.0, gt=0, le=90.0, description="boresight-to-target angle limit")
+    max_pointing_deg: float = Field(5.0, gt=0, le=90.0, description="boresight-to-target angle limit")
+    axis_angle_min_deg: float = Field(5.0, ge=0, le=180.0, description="pairwise optical-axis angle window")
+    axis_angle_max_deg: float = Field(30.0, gt=0, le=180.0)
     max_comm_range_m: float = Field(1000.0, gt=0, description="inter-spacecraft communication range")
-    reconfigure: bool = True
+    sun_exclusion_deg: float = Field(30.0, ge=0, le=180.0, description="smallest boresight-Sun angle")
+    keep_out_radius_m: float = Field(20.0, ge=0, description="keep-out sphere about the target")
+    reconfigure: bool = Field(True, description="cw geometry: plan a minimum-fuel reconfiguration when "
+                                                "no set qualifies")
+    reconfiguration_time_s: float = Field(600.0, gt=0, description="transfer time of a reconfiguration")
+    dv_max_m_s: float = Field(1.0, gt=0, description="largest single impulse")
 
     @model_validator(mode="after")
     def _geometry(self) -> FormationConfig:
@@ -145,6 +152,9 @@ class FormationConfig(_Model):
             raise ValueError("spacecraft: the cw geometry needs at least 2 candidate spacecraft")
         if self.min_active > self.max_active:
             raise ValueError(f"min_active: {self.min_active} exceeds max_active {self.max_active}")
+        if self.axis_angle_min_deg > self.axis_angle_max_deg:
+            raise ValueError(f"axis_angle_min_deg: {self.axis_angle_min_deg} exceeds axis_angle_max_deg "
+                             f"{self.axis_angle_max_deg}")
         names = [s.name for s in self.spacecraft]
         if len(set(names)) != len(names):
             raise ValueError("spacecraft: names must be unique")
@@ -270,9 +280,6 @@ class Config(_Model):
 
     @model_validator(mode="after")
     def _consistent(self) -> Config:
-        if self.formation.d_min_m is not None and self.formation.d_min_m >= self.formation.d_max_m:
-            raise ValueError(f"formation.d_min_m: {self.formation.d_min_m} must be below d_max_m "
-                             f"{self.formation.d_max_m}")
         if self.sweep is not None:
             self._check_grid_values()
         hold = self.estimator.convergence_hold_s

@@ -174,11 +174,21 @@ def plot_time_series(t: np.ndarray, series: np.ndarray, *, ax=None, labels: Sequ
     return ax
 
 
-def plot_timeline(t: np.ndarray, active: np.ndarray, names: Sequence[str], *, ax=None, title: str = ""):
-    """Active-observer timeline: one row per observer, filled where ``active[T, S]``."""
+def plot_timeline(t: np.ndarray, active: np.ndarray, names: Sequence[str], *, ax=None, title: str = "",
+                  shade: np.ndarray | None = None, shade_label: str = ""):
+    """Active-observer timeline: one row per observer, filled where ``active[T, S]``; epochs where
+    ``shade[T]`` is true (e.g. Earth's shadow) are shaded grey."""
     ax = _axes(ax)
     a = np.asarray(active, dtype=bool)
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    if shade is not None:
+        sh = np.asarray(shade, dtype=bool)
+        starts = np.flatnonzero(sh & ~np.r_[False, sh[:-1]])
+        ends = np.flatnonzero(sh & ~np.r_[sh[1:], False])
+        for n_span, (i, j) in enumerate(zip(starts, ends, strict=True)):
+            ax.axvspan(t[i], t[j] + dt, color="0.85", zorder=0, label=shade_label if n_span == 0 else None)
+        if shade_label and starts.size:
+            ax.legend(loc="upper right", fontsize=7)
     for s in range(a.shape[1]):
         on = a[:, s]
         starts = np.flatnonzero(on & ~np.r_[False, on[:-1]])
@@ -416,7 +426,8 @@ def closed_loop_figures(ds: xr.Dataset, fig_dir: Path) -> list[Path]:
     paths.append(save(fig, fig_dir / "errors.png"))
 
     fig, ax = plt.subplots(figsize=(10.0, 1.0 + 0.35 * ds.sizes["spacecraft"]), layout="constrained")
-    plot_timeline(t, ds["active"].values, ds["spacecraft"].values.tolist(), ax=ax)
+    plot_timeline(t, ds["active"].values, ds["spacecraft"].values.tolist(), ax=ax,
+                  shade=ds["illumination"].values < 0.5, shade_label="target in Earth's shadow")
     paths.append(save(fig, fig_dir / "active_observers.png"))
 
     if "snapshot_image" in ds:

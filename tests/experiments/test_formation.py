@@ -179,3 +179,24 @@ duration_s = 6.0
                      "reconstructed_cloud.png", "truth_vs_estimate.png"]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["study"] == "closed_loop" and summary["epochs"] == 13
+
+
+def test_observers_out_of_range_are_reconfigured_into_the_cone_and_then_selected():
+    """Three CW candidates 200 m behind the target (beyond d_max = 150 m): nobody qualifies, so a
+    minimum-fuel reconfiguration moves them to the 3-view cone at 50 m; after arrival they are active."""
+    from experiments.formation_closed_loop import plan_observers
+
+    far = [{"name": f"s{i}", "r_H_m": [0.0, -200.0 - 10 * i, 5.0 * i], "v_H_m_s": [0.0, 0.0, 0.0]}
+           for i in range(3)]
+    _, cfg = load_config(CONFIGS / "formation_orbit.toml", overrides={
+        "formation.spacecraft": far, "formation.reconfiguration_time_s": 600.0,
+        "formation.distance_m": 50.0, "formation.axis_angle_deg": 10.0})
+    t = np.arange(0.0, 1200.0, 30.0)
+    sun_H = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (t.size, 3))  # Sun along the orbit normal
+    p = plan_observers(cfg, t, 5.3, sun_H, np.ones(t.size))
+    assert p.reconfiguration["success"] and p.reconfiguration["start_s"] == 0.0
+    assert 0 < p.reconfiguration["dv_total_m_s"] < 3 * cfg.formation.dv_max_m_s * 6
+    arrived = t >= 600.0
+    np.testing.assert_allclose(np.linalg.norm(p.x_H[:, np.flatnonzero(arrived)[0], :3], axis=-1), 50.0, atol=0.5)
+    assert p.active[arrived].sum(axis=1).min() >= 2
+    assert not p.active[0].any()  # out of range at the start (they may qualify while approaching)
