@@ -93,13 +93,22 @@ class ExtractionSettings:
         ``N_max = n_max_factor × n_markers × (predicted dot area in pixels)``.
     log_sigma_px : float or None
         LoG scale σ; None: predicted dot radius in pixels / √2 (scale-normalised blob detector).
+    log_scales : tuple of float
+        ``J`` is the largest scale-normalised response over the scales ``σ × log_scales``, so a
+        dot that looks smaller (farther, or foreshortened by a tilt) responds as strongly as a
+        round one (a scale-normalised LoG peaks at ``σ = r/√2`` with a value set by the contrast).
     log_threshold_frac, log_peak_frac : float
-        ``J_t`` and ``J_peak`` as fractions of the largest LoG response in the active set.
+        ``J_t`` and ``J_peak`` as fractions of the white level ``W``.  A black dot of radius r on
+        the white plate gives a scale-normalised response of about ``0.5 W`` at ``σ = r/√2`` (less
+        when it is small or foreshortened); thresholds tied to the contrast rather than to the
+        frame's largest response (SEEDS_SPEC's 0.2× and 0.5× the maximum) keep the far and tilted
+        dots of an oblique plate.
     log_noise_factor : float
         ``J_peak`` is at least this many robust standard deviations of ``J`` over the valid pixels,
         so a frame without markers does not promote noise to markers.
     area_min_frac, area_max_frac : float
-        Accepted component size relative to the predicted dot area at the component's range.
+        Accepted component size relative to the predicted face-on dot area ``π (r f / ρ)²`` at the
+        component's range (a dot tilted by 64°, eccentricity 0.9, covers 0.44 of it).
     max_eccentricity : float
         Accepted eccentricity ``sqrt(1 − λ_min/λ_max)`` of the component's second moments.
     centroid_dilate_px : int
@@ -109,6 +118,12 @@ class ExtractionSettings:
         ``"mean"``: 000 eq (12), mean range of the component.  ``"plane"``: back-project the
         bright plate ring around the dot, fit a plane, and intersect the centroid ray with it
         (uses high-amplitude, low-noise pixels; the dot lies on the plate).
+    plane_support_factor : float
+        For ``"plane"``: the plate pixels within this many (predicted) dot radii of the key point
+        support the plane.
+    depth_edge_m : float
+        For ``"plane"``: plate pixels whose 3×3 neighbourhood spans more range than this (depth
+        edges, where the mixed pixels are) are left out of the plane fit.
     """
 
     grey_threshold_dn: float | None = None
@@ -116,23 +131,28 @@ class ExtractionSettings:
     grey_peak_frac: float = 0.25
     n_max_factor: float = 5.0
     log_sigma_px: float | None = None
-    log_threshold_frac: float = 0.2
-    log_peak_frac: float = 0.5
+    log_scales: tuple[float, ...] = (0.5, 0.7, 1.0)
+    log_threshold_frac: float = 0.1
+    log_peak_frac: float = 0.2
     log_noise_factor: float = 8.0
-    area_min_frac: float = 0.3
+    area_min_frac: float = 0.15
     area_max_frac: float = 3.0
-    max_eccentricity: float = 0.9
+    max_eccentricity: float = 0.95
     centroid_dilate_px: int = 2
     range_estimator: str = "plane"
+    depth_edge_m: float = 0.02
+    plane_support_factor: float = 3.0
 
     def __post_init__(self) -> None:
         if self.range_estimator not in ("mean", "plane"):
             raise ValueError(f"range_estimator: must be 'mean' or 'plane', got {self.range_estimator!r}")
-        for key in ("grey_threshold_frac", "grey_peak_frac", "n_max_factor", "log_threshold_frac", "log_peak_frac",
+        for key in ("grey_threshold_frac", "grey_peak_frac", "depth_edge_m", "plane_support_factor", "n_max_factor", "log_threshold_frac", "log_peak_frac",
                     "area_max_frac", "max_eccentricity"):
             v = getattr(self, key)
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"{key}: must be finite and > 0, got {v!r}")
+        if not self.log_scales or any(not np.isfinite(x) or x <= 0 for x in self.log_scales):
+            raise ValueError(f"log_scales: must be positive finite factors, got {self.log_scales!r}")
         if self.log_peak_frac < self.log_threshold_frac:
             raise ValueError(f"log_peak_frac: must be >= log_threshold_frac, got {self.log_peak_frac!r}")
         if int(self.centroid_dilate_px) != self.centroid_dilate_px or self.centroid_dilate_px < 0:
@@ -272,13 +292,14 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
         return _empty_detections("no pixels darker than the grey threshold",
                                  ExtractionThresholds(grey=i_t, n_max=n_max, log_sigma_px=sigma))
 
-    J = cv2.filter2D(amp.astype(np.float32), cv2.CV_32F, log_kernel(sigma).astype(np.float32),
-                     borderType=cv2.BORDER_REPLICATE).astype(float)
+    img = amp.astype(np.float32)
+    J = np.max([cv2.filter2D(img, cv2.CV_32F, log_kernel(sc * sigma).astype(np.float32),
+                             borderType=cv2.BORDER_REPLICATE) for sc in s.log_scales], axis=0).astype(float)
     j_max = float(J[cand].max())
     j_valid = J[valid]
     j_noise = 1.4826 * float(np.median(np.abs(j_valid - np.median(j_valid))))
-    j_t = s.log_threshold_frac * j_max
-    j_peak = max(s.log_peak_frac * j_max, s.log_noise_factor * j_noise)
+    j_t = s.log_threshold_frac * white
+    j_peak = max(s.log_peak_frac * white, s.log_noise_factor * j_noise)
     i_bg = white
     thr = ExtractionThresholds(grey=i_t, grey_peak=i_peak, log=j_t, log_peak=j_peak, n_max=n_max,
                                log_sigma_px=sigma)
@@ -311,10 +332,17 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     if accepted.size == 0:
         return _empty_detections("no marker candidates", thr)
 
+    if s.range_estimator == "plane":
+        # mixed pixels sit on depth edges: exclude pixels whose 3x3 range spread exceeds depth_edge_m
+        r_hi = np.where(valid, rng_img, np.inf).astype(np.float32)
+        r_lo = np.where(valid, rng_img, -np.inf).astype(np.float32)
+        k3 = np.ones((3, 3), np.uint8)
+        smooth = (cv2.dilate(r_hi, k3) - cv2.erode(r_lo, k3)) <= s.depth_edge_m
     objects = ndimage.find_objects(labels)
     d = int(s.centroid_dilate_px)
     ring_in, ring_out = d + 1, d + 3
-    pad = ring_out + 1
+    sup_px = s.plane_support_factor * r_dot * f_mean / med_r                     # per component
+    pad = int(max(ring_out, np.ceil(sup_px[ok].max()))) + 1
     uv, rho, rho_sig, cnt, ecc_out = [], [], [], [], []
     for lab in accepted:
         sl = objects[lab - 1]
@@ -338,8 +366,9 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
             rho_i = float(r_pix.mean())
             sig_i = float(r_pix.std(ddof=1) / np.sqrt(r_pix.size))
         else:
-            plate_ring = ring & (a_w > i_t)
-            est = _plane_range(gu[plate_ring] + u0, gv[plate_ring] + v0, r_w[plate_ring], uc, vc, camera)
+            near = (gu + u0 - uc) ** 2 + (gv + v0 - vc) ** 2 <= sup_px[lab - 1] ** 2
+            plate = near & ok_w & (a_w > i_t) & smooth[v0:v1, u0:u1] & ~_dilate(comp, ring_in)
+            est = _plane_range(gu[plate] + u0, gv[plate] + v0, r_w[plate], uc, vc, camera)
             if est is None:
                 continue
             rho_i, sig_i = est
@@ -365,30 +394,37 @@ def _dilate(mask: np.ndarray, px: int) -> np.ndarray:
 
 def _plane_range(u: np.ndarray, v: np.ndarray, r: np.ndarray, uc: float, vc: float,
                  camera: TofCamera) -> tuple[float, float] | None:
-    """Range along the ray of ``(uc, vc)`` to the plane fitted to the plate-ring pixels, and its σ.
+    """Range along the ray of ``(uc, vc)`` to the plane through the plate pixels around it, and its σ.
 
-    Least-squares plane (SVD) through the back-projected ring pixels, refitted once without the
-    pixels farther than 3 robust σ from it (mixed pixels at a plate edge)."""
+    In axes ``(a, b, e)`` with ``e`` the unit ray of the key point, the back-projected plate pixels
+    are fitted by ``z = c0 + c1 x + c2 y`` (least squares, refitted once without the pixels beyond
+    3 robust σ); the ray meets the plane at range ``c0``, whose standard error
+    ``σ sqrt((XᵀX)⁻¹₀₀)`` includes the extrapolation when the support is one-sided.
+    """
+    if r.size < 8:
+        return None
     p = points_from_pixel_range(u, v, r, camera)
+    e = points_from_pixel_range(uc, vc, 1.0, camera)
+    a = np.cross(e, [0.0, 1.0, 0.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(e, a)
+    X = np.column_stack([np.ones(len(p)), p @ a, p @ b])
+    z = p @ e
     keep = np.ones(len(p), dtype=bool)
     for _ in range(2):
-        if keep.sum() < 6:
+        if keep.sum() < 8:
             return None
-        c = p[keep].mean(axis=0)
-        _, sv, vt = np.linalg.svd(p[keep] - c, full_matrices=False)
-        n = vt[2]
-        resid = (p - c) @ n
-        mad = 1.4826 * float(np.median(np.abs(resid[keep])))
-        keep = np.abs(resid) <= 3.0 * max(mad, 1e-6)
-    if sv[1] < 1e-9:
+        coef, *_ = np.linalg.lstsq(X[keep], z[keep], rcond=None)
+        res = z - X @ coef
+        mad = 1.4826 * float(np.median(np.abs(res[keep])))
+        keep = np.abs(res) <= 3.0 * max(mad, 1e-6)
+    coef, *_ = np.linalg.lstsq(X[keep], z[keep], rcond=None)
+    res = z[keep] - X[keep] @ coef
+    dof = int(keep.sum()) - 3
+    if dof < 5:
         return None
-    ray = points_from_pixel_range(uc, vc, 1.0, camera)
-    denom = float(n @ ray)
-    if abs(denom) < 1e-6:
-        return None
-    rho = float(n @ c) / denom
-    sig = float(np.std(resid[keep], ddof=3) / np.sqrt(keep.sum()) / abs(denom))
-    return rho, sig
+    cov = np.linalg.inv(X[keep].T @ X[keep]) * float(res @ res) / dof
+    return float(coef[0]), float(np.sqrt(cov[0, 0]))
 
 
 # --------------------------------------------------------------------------------------------

@@ -216,6 +216,18 @@ def test_pose_of_a_tilted_plate_recovers_pitch_yaw_roll():
     np.testing.assert_allclose(res.r_CS_S, r, atol=0.002)
 
 
+@pytest.mark.parametrize("pitch_yaw_roll_deg", [(0.0, 0.0, 60.0), (-60.0, 0.0, 0.0)])
+def test_plate_tilted_60_deg_keeps_all_six_markers_and_its_attitude(pitch_yaw_roll_deg):
+    """Far, foreshortened dots pass (multi-scale LoG, contrast-tied thresholds, eccentricity 0.95) and
+    the plate-plane range is not thrown off by a one-sided support near the plate edge."""
+    p, y, r = np.radians(pitch_yaw_roll_deg)
+    R = matrix_from_euler([y, p, r], "321")
+    res = estimate_tof_pose(render_tof_frame(CAM, CooperativeTarget(), R, R_700, rng=24), CAM, PLATE)
+    assert res.found and res.n_matched == 6
+    assert np.degrees(rotation_angle(res.R_SC @ R.T)) < 0.3
+    assert np.linalg.norm(res.r_CS_S - R_700) < 0.001
+
+
 def test_pose_labels_correct_with_a_hidden_marker_and_a_spurious_blob_in_the_image():
     target = dataclasses.replace(CooperativeTarget(), hidden_markers=(3,), spurious_xy_m=[(0.02, 0.0)])
     res = estimate_tof_pose(render_tof_frame(CAM, target, np.eye(3), R_700, rng=22), CAM, PLATE)
