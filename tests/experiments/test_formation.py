@@ -25,7 +25,8 @@ def _write(tmp_path: Path, text: str, name: str = "cfg.toml") -> Path:
     return p
 
 
-@pytest.mark.parametrize("name", ["quickstart.toml", "003_fig5_fig6.toml", "003_ekf.toml", "formation_orbit.toml"])
+@pytest.mark.parametrize("name", ["quickstart.toml", "003_fig5_fig6.toml", "003_fig5_fig6_rendered.toml",
+                                  "003_ekf.toml", "003_convergence_closed_loop.toml", "formation_orbit.toml"])
 def test_shipped_configs_validate(name):
     module, cfg = load_config(CONFIGS / name)
     assert cfg.kind == "formation" and module.__name__ == "experiments.scenario_formation"
