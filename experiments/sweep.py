@@ -399,6 +399,7 @@ def run_sweep(
     seed: int = 0,
     make_input: Callable[[dict[str, Any]], Any] | None = None,
     identity: str = "",
+    seed_keys: Sequence[str] | None = None,
     attrs: Mapping[str, Any] | None = None,
     workers: int = 1,
     scheduler: str | None = None,
@@ -425,6 +426,11 @@ def run_sweep(
     identity : str
         Text describing everything fixed in the sweep (e.g. the base config as JSON); part of the
         store's fingerprint, so a changed config is not resumed into an old store.
+    seed_keys : sequence of str, optional
+        The swept keys the random streams depend on (default: all).  Cells that agree on these
+        keys share their trial streams: common random numbers, e.g. ``[]`` gives every cell the
+        same initial attitudes so that neighbouring cells and 2 vs 3 views are compared on the
+        same draws.
     attrs : mapping, optional
         Extra dataset attributes (JSON-able scalars or strings).
     workers : int
@@ -461,12 +467,16 @@ def run_sweep(
                 raise ValueError(f"cell.metrics.{name}: dimension {d!r} has no coordinate in cell.coords")
     garr = _grid_arrays(grid)
     names = _coord_names(list(garr))
+    keys = list(garr) if seed_keys is None else list(seed_keys)
+    for k in keys:
+        if k not in garr:
+            raise ValueError(f"seed_keys: {k!r} is not a swept key ({', '.join(garr)})")
     cells = list(_cells(garr))
     inputs = [(make_input or dict)(params) for _, params in cells]  # validates every cell first
-    fingerprint = _fingerprint(cell, garr, int(trials), int(seed), identity)
+    fingerprint = _fingerprint(cell, garr, int(trials), int(seed), identity + json.dumps(sorted(keys)))
     store = Path(out) / STORE_NAME
     base_attrs = {"cell": cell.name, "seed": int(seed), "trials": int(trials),
-                  "swept_keys": json.dumps(list(garr)), **(attrs or {})}
+                  "swept_keys": json.dumps(list(garr)), "seed_keys": json.dumps(keys), **(attrs or {})}
     done = _prepare_store(store, cell, garr, names, int(trials), fingerprint, base_attrs)
 
     todo = [(i, idx, params) for i, (idx, params) in enumerate(cells) if not done[idx]]
@@ -494,7 +504,8 @@ def run_sweep(
             cell_future = client.scatter(cell, broadcast=True)
             futures = {}
             for i, idx, params in todo:
-                fut = client.submit(_run_cell, cell_future, inputs[i], _cell_entropy(int(seed), params),
+                seed_params = {k: v for k, v in params.items() if k in keys}
+                fut = client.submit(_run_cell, cell_future, inputs[i], _cell_entropy(int(seed), seed_params),
                                     int(trials), key=f"cell-{fingerprint[:12]}-{i}", pure=False)
                 futures[fut] = idx
             for fut in as_completed(futures):
@@ -574,6 +585,8 @@ class SweepSpec(pydantic.BaseModel):
     cell: str = pydantic.Field(min_length=1)
     trials: int = pydantic.Field(ge=1, le=1_000_000)
     seed: int = pydantic.Field(default=0, ge=0)
+    seed_keys: list[str] | None = pydantic.Field(
+        default=None, description="swept keys the random streams depend on (default all; [] = common random numbers)")
     grid: dict[str, list[float | int | bool | str] | GridRange]
 
     @pydantic.field_validator("grid")
@@ -587,6 +600,13 @@ class SweepSpec(pydantic.BaseModel):
             if key == "sweep" or key.startswith("sweep.") or key == "kind":
                 raise ValueError(f"{key}: cannot be swept")
         return grid
+
+    @pydantic.model_validator(mode="after")
+    def _seed_keys_swept(self) -> SweepSpec:
+        for k in self.seed_keys or []:
+            if k not in self.grid:
+                raise ValueError(f"seed_keys: {k!r} is not a key of sweep.grid")
+        return self
 
     def grid_values(self) -> dict[str, list[Any]]:
         return {k: (v.values() if isinstance(v, GridRange) else list(v)) for k, v in self.grid.items()}
@@ -755,6 +775,7 @@ def sweep(
     try:
         report = run_sweep(cell, grid, trials=spec.trials, out=out, seed=spec.seed,
                            make_input=lambda params: by_params[_params_key(params)], identity=identity,
+                           seed_keys=spec.seed_keys,
                            attrs={"kind": cfg.kind, "config_toml": config_text,
                                   "overrides": json.dumps(overrides)},
                            workers=workers, scheduler=scheduler, progress=update)

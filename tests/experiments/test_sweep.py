@@ -165,3 +165,18 @@ def test_redraw_draws_figures_from_the_stored_sweep_only(reference, tmp_path):
     assert names == ["sweep_expected_mean_deg.png", "sweep_expected_rms_deg.png",
                      "sweep_mean_angle_deg.png", "sweep_rms_angle_deg.png"]
     assert all(p.stat().st_size > 5_000 for p in paths)
+
+
+def test_common_random_numbers_give_every_cell_the_same_draws(tmp_path):
+    """seed_keys=[]: the noise draws do not depend on the cell, so the error angle scales exactly
+    with e (the perturbation is linear in σ = e/√3 for the same normal draws)."""
+    grid = {"angle_error_deg": [0.5, 1.0], "samples": [500]}
+    run_sweep(ATTITUDE_NOISE_CELL, grid, trials=2, out=tmp_path / "crn", seed=4, seed_keys=[], workers=1,
+              processes=False)
+    crn = open_sweep(tmp_path / "crn").rms_angle_deg
+    np.testing.assert_allclose(crn.sel(angle_error_deg=1.0).values, 2 * crn.sel(angle_error_deg=0.5).values,
+                               rtol=1e-6)
+    run_sweep(ATTITUDE_NOISE_CELL, grid, trials=2, out=tmp_path / "ind", seed=4, workers=1, processes=False)
+    ind = open_sweep(tmp_path / "ind").rms_angle_deg
+    assert not np.allclose(ind.sel(angle_error_deg=1.0).values, 2 * ind.sel(angle_error_deg=0.5).values,
+                           rtol=1e-6)
