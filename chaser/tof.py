@@ -311,16 +311,25 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     if n_lab <= 1:
         return _empty_detections("no marker candidates", thr)
     idx = np.arange(1, n_lab)
-    count = ndimage.sum_labels(np.ones_like(amp), labels, idx)
-    min_i = ndimage.minimum(amp, labels, idx)
-    max_j = ndimage.maximum(J, labels, idx)
-    med_r = ndimage.median(np.where(valid, rng_img, median_range), labels, idx)
-    vv, uu = np.indices(amp.shape, dtype=float)
-    mu = ndimage.sum_labels(uu, labels, idx) / count
-    mv = ndimage.sum_labels(vv, labels, idx) / count
-    cuu = ndimage.sum_labels(uu**2, labels, idx) / count - mu**2
-    cvv = ndimage.sum_labels(vv**2, labels, idx) / count - mv**2
-    cuv = ndimage.sum_labels(uu * vv, labels, idx) / count - mu * mv
+    # per-component statistics over the labelled pixels only (bincount / reduceat)
+    pv, pu = np.nonzero(labels)
+    pl = labels[pv, pu]
+    order = np.argsort(pl, kind="stable")
+    pv, pu, pl = pv[order], pu[order], pl[order]
+    starts = np.searchsorted(pl, idx)
+    count = np.bincount(pl, minlength=n_lab)[1:].astype(float)
+    min_i = np.minimum.reduceat(amp[pv, pu], starts)
+    max_j = np.maximum.reduceat(J[pv, pu], starts)
+    r_ok = valid[pv, pu]
+    n_r = np.bincount(pl, weights=r_ok, minlength=n_lab)[1:]
+    sum_r = np.bincount(pl, weights=np.where(r_ok, rng_img[pv, pu], 0.0), minlength=n_lab)[1:]
+    med_r = np.where(n_r > 0, sum_r / np.maximum(n_r, 1), median_range)          # mean range
+    fu, fv = pu.astype(float), pv.astype(float)
+    mu = np.bincount(pl, weights=fu, minlength=n_lab)[1:] / count
+    mv = np.bincount(pl, weights=fv, minlength=n_lab)[1:] / count
+    cuu = np.bincount(pl, weights=fu * fu, minlength=n_lab)[1:] / count - mu**2
+    cvv = np.bincount(pl, weights=fv * fv, minlength=n_lab)[1:] / count - mv**2
+    cuv = np.bincount(pl, weights=fu * fv, minlength=n_lab)[1:] / count - mu * mv
     tr, det = cuu + cvv, cuu * cvv - cuv**2
     disc = np.sqrt(np.maximum(tr**2 / 4 - det, 0.0))
     lam_max, lam_min = tr / 2 + disc, np.maximum(tr / 2 - disc, 0.0)
@@ -405,26 +414,30 @@ def _plane_range(u: np.ndarray, v: np.ndarray, r: np.ndarray, uc: float, vc: flo
         return None
     p = points_from_pixel_range(u, v, r, camera)
     e = points_from_pixel_range(uc, vc, 1.0, camera)
-    a = np.cross(e, [0.0, 1.0, 0.0])
-    a /= np.linalg.norm(a)
-    b = np.cross(e, a)
+    a = np.array([-e[2], 0.0, e[0]]) / np.hypot(e[0], e[2])        # e × y, normalised
+    b = np.array([e[1] * a[2] - e[2] * a[1], e[2] * a[0] - e[0] * a[2], e[0] * a[1] - e[1] * a[0]])
     X = np.column_stack([np.ones(len(p)), p @ a, p @ b])
     z = p @ e
     keep = np.ones(len(p), dtype=bool)
-    for _ in range(2):
-        if keep.sum() < 8:
+    for it in range(3):
+        Xk, zk = X[keep], z[keep]
+        if len(zk) < 8:
             return None
-        coef, *_ = np.linalg.lstsq(X[keep], z[keep], rcond=None)
+        G = Xk.T @ Xk
+        if np.linalg.cond(G) > 1e12:
+            return None
+        coef = np.linalg.solve(G, Xk.T @ zk)
         res = z - X @ coef
+        if it == 2:
+            break
         mad = 1.4826 * float(np.median(np.abs(res[keep])))
         keep = np.abs(res) <= 3.0 * max(mad, 1e-6)
-    coef, *_ = np.linalg.lstsq(X[keep], z[keep], rcond=None)
-    res = z[keep] - X[keep] @ coef
+    rk = res[keep]
     dof = int(keep.sum()) - 3
     if dof < 5:
         return None
-    cov = np.linalg.inv(X[keep].T @ X[keep]) * float(res @ res) / dof
-    return float(coef[0]), float(np.sqrt(cov[0, 0]))
+    var0 = float(np.linalg.inv(G)[0, 0]) * float(rk @ rk) / dof
+    return float(coef[0]), float(np.sqrt(var0))
 
 
 # --------------------------------------------------------------------------------------------
