@@ -169,7 +169,7 @@ def gibbs_set_from_shuster(q_s: ArrayLike, i: ArrayLike) -> np.ndarray:
     ii = np.broadcast_to(i, q.shape[:-1])
     sel_num = np.take_along_axis(num, ii[None, ..., None].astype(int), 0)[0]
     sel_den = np.take_along_axis(den, ii[None, ...].astype(int), 0)[0]
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         return sel_num / sel_den[..., None]
 
 
@@ -224,7 +224,7 @@ def gibbs_transform(g: ArrayLike, j: int) -> np.ndarray:
         num, den = np.stack([g2, -g1, -one], -1), g3
     else:
         raise ValueError(f"j: transform index must be 1, 2 or 3, got {j!r}")
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         return num / den[..., None]
 
 

@@ -191,7 +191,10 @@ def quat_from_axis_angle(axis: ArrayLike, angle_rad: ArrayLike) -> np.ndarray:
     if np.any(n == 0):
         raise ValueError("axis: zero-length rotation axis")
     half = 0.5 * _as_float(angle_rad)[..., None]
-    return np.concatenate([np.cos(half), np.sin(half) * axis / n], -1)
+    u = axis / n
+    shape = np.broadcast_shapes(half.shape[:-1], u.shape[:-1])
+    half = np.broadcast_to(half, shape + (1,))
+    return np.concatenate([np.cos(half), np.sin(half) * np.broadcast_to(u, shape + (3,))], -1)
 
 
 def quat_exp(v: ArrayLike) -> np.ndarray:

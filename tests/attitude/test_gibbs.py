@@ -135,3 +135,12 @@ def test_gibbs_of_180_degrees_is_an_error_naming_q():
         gibbs_from_quat([0.0, 1.0, 0.0, 0.0])
     with pytest.raises(ValueError, match="i: parameter-set index"):
         gibbs_set_from_quat([1.0, 0, 0, 0], 4)
+
+
+def test_subnormal_denominator_gives_inf_without_a_warning():
+    """A set whose denominator underflows is simply unusable (inf), never a RuntimeWarning."""
+    q = np.array([1e-310, 1.0, 0.0, 0.0])
+    g = gibbs_set_from_quat(q, 0)
+    assert np.isinf(g[0])
+    g_best, i = best_gibbs_set(q)
+    assert i == 1 and np.all(np.isfinite(g_best))

@@ -141,3 +141,12 @@ def test_bad_input_names_the_argument():
         quat_from_axis_angle([0.0, 0.0, 0.0], 1.0)
     with pytest.raises(ValueError, match="R: not a rotation matrix"):
         check_rotation_matrix(np.diag([1.0, 1.0, -1.0]))
+
+
+def test_axis_angle_broadcasts_a_scalar_angle_over_a_batch_of_axes():
+    axes = np.eye(3)
+    q = quat_from_axis_angle(axes, 0.5)
+    assert q.shape == (3, 4)
+    for k in range(3):
+        np.testing.assert_allclose(matrix_from_quat(q[k]), Rotation.from_rotvec(0.5 * axes[k]).as_matrix(), atol=1e-15)
+    assert quat_from_axis_angle([0, 0, 1], np.array([0.1, 0.2])).shape == (2, 4)
