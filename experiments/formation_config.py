@@ -174,7 +174,8 @@ class ObservationConfig(_Model):
 
     mode: Literal["rendered", "geometric"] = "geometric"
     pixel_sigma_px: float = Field(0.5, gt=0, le=10.0, description="feature localisation noise σ")
-    false_match_fraction: float = Field(0.05, ge=0, lt=1.0, description="geometric mode: false-match fraction")
+    false_match_fraction: float = Field(
+        0.02, ge=0, lt=1.0, description="geometric mode: false-match fraction (vision calibrated 0.02 against the rendered mode)")
     n_features: int = Field(2000, ge=10, le=100000, description="geometric mode: surface features")
     sun_H: list[float] = Field([1.0, -0.5, 0.6], description="rendered mode: direction to the Sun (H)")
     detector: Literal["sift", "orb", "akaze", "surf"] = "sift"

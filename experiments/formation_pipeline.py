@@ -280,7 +280,8 @@ def error_map_trials(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> di
 
     Each trial: a uniformly random initial attitude ``q_HT0``, then ``steps`` increments
     ``Δq = exp(Δθ/2)`` applied on the left (H frame, 003 eq 32), observed, triangulated, associated
-    and registered.  Streams per trial: attitude, then one per epoch's observation, then registration.
+    and registered.  Three streams per trial (children of its seed): the initial attitude, the
+    observations of all its epochs, and the registration (RANSAC).
 
     Returns
     -------
@@ -318,26 +319,20 @@ def error_map_trials(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> di
             observations = [observe_epoch(cfg, camera, T_CW, target, qs[k], rng=obs_rngs[k])
                             for k in range(steps + 1)]
         reg_rng = np.random.default_rng(s_reg)
-        all_frames = reconstruct_many(observations)
-        frames: list[Frame] = []
-        est = []
-        errs = []
-        tracks, matches, inliers = [], [], []
+        frames = reconstruct_many(observations)
+        est, errs, inliers, matches = [], [], [], []
+        tracks = [f.obs.n_tracks for f in frames]
+        out["crlb_deg"][t] = _crlb_deg(cfg, frames[0], qs[0], dq, T_CW)
         why = ""
-        for k in range(steps + 1):
-            frames.append(all_frames[k])
-            tracks.append(frames[-1].obs.n_tracks)
-            if k == 0:
-                out["crlb_deg"][t] = _crlb_deg(cfg, frames[0], qs[0], dq, T_CW)
+        for k in range(1, steps + 1):
+            inc = register_frames(cfg, frames[k - 1], frames[k], rng=reg_rng, with_covariance=False)
+            matches.append(inc.n_matches)
+            if inc.ok:
+                inliers.append(inc.n_inliers)
+                est.append(rotvec_from_quat(quat_from_matrix(inc.R_H)))
+                errs.append(np.linalg.norm(rotvec_from_quat(quat_from_matrix(inc.R_H @ dR.T))))
             else:
-                inc = register_frames(cfg, frames[-2], frames[-1], rng=reg_rng, with_covariance=False)
-                matches.append(inc.n_matches)
-                if inc.ok:
-                    inliers.append(inc.n_inliers)
-                    est.append(rotvec_from_quat(quat_from_matrix(inc.R_H)))
-                    errs.append(np.linalg.norm(rotvec_from_quat(quat_from_matrix(inc.R_H @ dR.T))))
-                else:
-                    why = why or inc.failure_reason
+                why = why or inc.failure_reason
         out["n_tracks"][t] = np.median(tracks)
         out["n_matches"][t] = np.median(matches) if matches else 0
         out["failed_steps"][t] = steps - len(est)
