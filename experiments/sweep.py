@@ -495,7 +495,7 @@ def run_sweep(
             import logging
 
             cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=processes,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
+                                   dashboard_address=":0", silence_logs=logging.ERROR)
             client = Client(cluster)
         else:
             client = Client(scheduler)
