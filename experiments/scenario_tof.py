@@ -215,6 +215,8 @@ def run(cfg: Config, *, progress: Callable[[int, int], None]) -> ScenarioResult:
             res = pose(frame, est)
             vals[e, i], att[e, i], pos[e, i] = _pose_row(res, R_true, r_true)
             n_matched[e, i], reason[e, i] = res.n_matched, res.reason
+            if i == 0 and e == 0:
+                example = (frame, res)
         done += 1
         progress(done, total)
     ds = xr.Dataset(
@@ -225,6 +227,11 @@ def run(cfg: Config, *, progress: Callable[[int, int], None]) -> ScenarioResult:
     ds["position_error_mm"] = (("estimator", "frame"), pos, {"units": "mm"})
     ds["n_matched"] = (("estimator", "frame"), n_matched)
     ds["failure_reason"] = (("estimator", "frame"), reason.astype(str))
+    frame0, res0 = example
+    ds["example_amplitude_dn"] = (("v_px", "u_px"), frame0.amplitude_dn, {"units": "DN", "long_name": "frame 0 amplitude"})
+    ds["example_range_m"] = (("v_px", "u_px"), frame0.range_m, {"units": "m", "long_name": "frame 0 radial range"})
+    ds["example_keypoint_uv_px"] = (("keypoint", "uv"), res0.detections.uv_px, {"units": "px"})
+    ds["example_keypoint_label"] = (("keypoint",), res0.labels)
     summary: dict = {"distance_m": cfg.target.distance_m, "attitude_deg": list(cfg.target.attitude_deg),
                      "frames": n_static, "camera": camera.name, "euler": "3-2-1, R_SC = Rz(yaw) Ry(pitch) Rx(roll)"}
     for e, est in enumerate(ests):
@@ -318,6 +325,25 @@ def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
 
     fig_dir = Path(fig_dir)
     out: list[Path] = []
+    if "example_amplitude_dn" in dataset:
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+        im = axes[0].imshow(dataset["example_amplitude_dn"], cmap="gray")
+        fig.colorbar(im, ax=axes[0], label="amplitude (DN)")
+        im = axes[1].imshow(dataset["example_range_m"], cmap="viridis")
+        fig.colorbar(im, ax=axes[1], label="radial range (m)")
+        uv = dataset["example_keypoint_uv_px"].values
+        for k, (u, v) in enumerate(uv):
+            lab = int(dataset["example_keypoint_label"].values[k])
+            axes[0].plot(u, v, "r+", ms=10)
+            axes[0].annotate(str(lab) if lab >= 0 else "null", (u, v), xytext=(7, -9), textcoords="offset points",
+                             color="gold", fontsize=9, fontweight="bold")
+        axes[0].set_title("amplitude, key points and MRF labels (frame 0)")
+        axes[1].set_title("range image (NaN: no return / low confidence)")
+        fig.tight_layout()
+        out.append(fig_dir / "tof_frame.png")
+        fig.savefig(out[-1], dpi=110)
+        plt.close(fig)
+
     fig, axes = plt.subplots(2, 3, figsize=(12, 6), sharex=True)
     for ax, c in zip(axes.ravel(), COLUMNS, strict=True):
         for est in dataset["estimator"].values:

@@ -31,7 +31,7 @@ def test_tof_000_reduced_run_gives_table1_statistics_sweep_and_matching_rates(tm
     assert summary["matching_success_rate"]["one_missing"]["mrf"]["raw"] == 1.0
     assert ds["x_mm"].attrs["units"] == "mm" and ds["pitch_deg"].attrs["units"] == "deg"
     figs = module.plot(ds, tmp_path)
-    assert [f.name for f in figs] == ["tof_static.png", "tof_sweep.png", "tof_matching.png"]
+    assert [f.name for f in figs] == ["tof_frame.png", "tof_static.png", "tof_sweep.png", "tof_matching.png"]
     assert all(f.stat().st_size > 0 for f in figs)
 
 
