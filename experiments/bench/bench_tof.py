@@ -3,8 +3,8 @@
 * the whole pose chain on one frame (:func:`chaser.tof.estimate_tof_pose`: extraction, corrected
   MRF matching, pose verification, weighted SVD), frames per second, against the same chain with
   OpenCV's ``SimpleBlobDetector`` for the dots (range: mean over a disc of the detected size, eq 5),
-  the Hungarian baseline and ``cv2.estimateAffine3D``-free weighted SVD — i.e. the off-the-shelf
-  way of doing it, with the accuracy of both in the note;
+  the Hungarian baseline with verification and the SVD pose — the off-the-shelf way of doing it —
+  with the attitude accuracy of both in the note;
 * marker extraction alone against ``cv2.SimpleBlobDetector``;
 * the weighted SVD pose batched over problems against ``scipy.spatial.transform.Rotation.align_vectors``
   called per problem;
