@@ -1,4 +1,16 @@
-"""Flying a reconfiguration plan: CW states of the moving spacecraft at any time after its start."""
+"""Flying a reconfiguration plan, and slot states that hold a trailing geometry after arrival.
+
+:func:`states_along_plan` gives the moving spacecraft's CW states at any time after the plan's
+start (impulses at the nodes, coasting after arrival).
+
+Holding the geometry: :func:`formation.reconfiguration.drift_free_slot_states` gives each slot the
+velocity ``(0, −2 n x, 0)``; then ``x(t) = x₀ cos nt`` and ``z(t) = z₀ cos nt`` both shrink together,
+so a cone about the along-track axis collapses onto it a quarter orbit after arrival (every
+pairwise optical-axis angle → 0, far below γ_min).  :func:`circulating_slot_states` instead makes
+each slot's cross-track/radial offset turn at the orbit rate, ``(x, z)(t) = R(nt) (x₀, z₀)``
+(velocity ``(n z, −2 n x, −n x)``, still drift-free), so the triangle of offsets keeps its size and
+only the along-track positions oscillate by ``2|(x₀, z₀)|``.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +20,7 @@ from numpy.typing import ArrayLike
 from formation.reconfiguration import ReconfigurationPlan
 from orbits.cw import propagate, stm
 
-__all__ = ["states_along_plan"]
+__all__ = ["circulating_slot_states", "states_along_plan"]
 
 
 def states_along_plan(x0_H: ArrayLike, plan: ReconfigurationPlan, t_s: ArrayLike, *, n: float) -> np.ndarray:
@@ -55,3 +67,32 @@ def states_along_plan(x0_H: ArrayLike, plan: ReconfigurationPlan, t_s: ArrayLike
     start = np.where(seg[None, :, None] >= 0, after[:, np.maximum(seg, 0)], x0[:, None, :])
     dt = t - np.where(seg >= 0, nodes[np.maximum(seg, 0)], 0.0)
     return np.einsum("tab,mtb->mta", stm(dt, n), start)
+
+
+def circulating_slot_states(r_slot_H: ArrayLike, n: float) -> np.ndarray:
+    """Slot states whose radial/cross-track offset turns at the orbit rate (see module doc).
+
+    Velocity ``(n z, −2 n x, −n x)`` at slot position ``(x, y, z)``: ``ẏ = −2 n x`` removes the
+    along-track drift (CW), and ``(ẋ, ż) = n (z, −x)`` makes ``x(t) = x₀ cos nt + z₀ sin nt``,
+    ``z(t) = z₀ cos nt − x₀ sin nt``: the offset ``(x, z)`` keeps its length.  Meant for geometries
+    whose axis is along-track (observers trailing or leading the target).
+
+    Parameters
+    ----------
+    r_slot_H : (..., 3) array_like
+        Slot positions relative to the target, H, m.
+    n : float
+        Mean motion, rad/s.
+
+    Returns
+    -------
+    (..., 6) ndarray
+        Slot states, m and m/s.
+    """
+    r = np.asarray(r_slot_H, dtype=float)
+    if r.shape[-1:] != (3,):
+        raise ValueError(f"r_slot_H: expected shape (..., 3), got {r.shape}")
+    if not n > 0:
+        raise ValueError(f"n: mean motion must be positive, got {n!r}")
+    v = np.stack([n * r[..., 2], -2.0 * n * r[..., 0], -n * r[..., 0]], -1)
+    return np.concatenate([r, v], -1)

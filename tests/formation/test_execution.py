@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from formation.execution import states_along_plan
+from formation.constraints import evaluate
+from formation.execution import circulating_slot_states, states_along_plan
 from formation.reconfiguration import choose_movers, drift_free_slot_states, plan
 from formation.scenarios import six_spacecraft_scenario
 from orbits.cw import propagate
@@ -44,3 +45,23 @@ def test_negative_times_and_mismatched_states_are_rejected(planned):
         states_along_plan(x0, p, [-1.0, 3.0], n=s.n)
     with pytest.raises(ValueError, match="x0_H"):
         states_along_plan(x0[:2], p, [1.0], n=s.n)
+
+
+def test_drift_free_slots_collapse_at_quarter_orbit_and_circulating_slots_hold_the_cone():
+    """Analytic: with (0, −2nx, 0) the offsets x, z scale by cos nt, so at nt = 90° the three
+    trailing cameras line up along-track (pairwise axis angles 0); circulating offsets keep their
+    length, and the set passes every constraint over a whole orbit."""
+    s = six_spacecraft_scenario()
+    r = s.slots.r_CT_H
+    quarter = np.array([0.25 * s.period_s])
+    x_df = propagate(drift_free_slot_states(r, s.n), quarter, s.n)[:, 0]
+    np.testing.assert_allclose(x_df[:, [0, 2]], 0.0, atol=1e-9)
+    t = np.arange(0.0, s.period_s, 10.0)
+    x_c = propagate(circulating_slot_states(r, s.n), t, s.n)
+    rho = np.linalg.norm(x_c[..., [0, 2]], axis=-1)
+    np.testing.assert_allclose(rho / np.linalg.norm(r[:, [0, 2]], axis=-1)[:, None], 1.0, rtol=1e-9)
+    np.testing.assert_allclose(x_c[..., 4], -2 * s.n * x_c[..., 0], atol=1e-12)  # drift-free all along
+    ev = evaluate(s.constraints, np.swapaxes(x_c[..., :3], 0, 1))
+    assert ev.set_ok([0, 1, 2]).all()
+    ev_df = evaluate(s.constraints, np.swapaxes(propagate(drift_free_slot_states(r, s.n), t, s.n)[..., :3], 0, 1))
+    assert not ev_df.set_ok([0, 1, 2]).all()
