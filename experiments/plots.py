@@ -286,7 +286,7 @@ def error_map_figures(ds: xr.Dataset, fig_dir: Path) -> list[Path]:
                                             (crlb, "Cramer-Rao bound per step, median"))):
                 m = da.sel(s).transpose(y, x)
                 plot_map(m.values, ds[x].values, ds[y].values, ax=axes[r, c], vmin=ERROR_MAP_RANGE_DEG[0],
-                         vmax=ERROR_MAP_RANGE_DEG[1] if c < 2 else None, cmap="jet" if c < 2 else "viridis",
+                         vmax=ERROR_MAP_RANGE_DEG[1], cmap="jet" if c < 2 else "viridis",
                          xlabel="distance [m]", ylabel="line-of-sight angle [deg]", cbar_label="deg",
                          title=f"{tag}: {what}", annotate=True)
         extra = ", ".join(f"{k} = {v}" for k, v in sel.items())
@@ -343,7 +343,11 @@ def sweep_figures(ds: xr.Dataset, fig_dir: Path) -> list[Path]:
 
 def ekf_figures(ds: xr.Dataset, fig_dir: Path) -> list[Path]:
     """003 Figs 7–12 from an ``ekf`` study: component errors of one run (Figs 7–8) and ``typical_runs``
-    runs of e_θ (eq 36) and e_ω (eq 37) per case (Figs 9–12)."""
+    runs of the attitude and rate errors per case (Figs 9–12).
+
+    The attitude error is the rotation angle (SEEDS_SPEC §3.7): 003 eq (36) on 3-2-1 Euler angles
+    is kept in the dataset (``euler_error_deg``) but blows up near pitch ±90° (gimbal lock).
+    """
     paths: list[Path] = []
     t = ds["time_s"].values
     th_a = float(ds.attrs.get("threshold_attitude_deg", np.nan))
@@ -363,8 +367,8 @@ def ekf_figures(ds: xr.Dataset, fig_dir: Path) -> list[Path]:
         fig, axes = plt.subplots(1, 2, figsize=(11.0, 3.8), layout="constrained")
         n = min(ntyp, c.sizes["run"])
         conv = float(c["converged"].mean())
-        plot_time_series(t, c["euler_error_deg"].isel(run=slice(0, n)).values, ax=axes[0], threshold=th_a,
-                         logy=True, ylabel="e_theta [deg] (003 eq 36)", alpha=0.8, linewidth=0.8,
+        plot_time_series(t, c["attitude_error_deg"].isel(run=slice(0, n)).values, ax=axes[0], threshold=th_a,
+                         logy=True, ylabel="attitude error [deg] (rotation angle)", alpha=0.8, linewidth=0.8,
                          title=f"{case}: {n} runs, {conv:.0%} of {c.sizes['run']} converged")
         plot_time_series(t, c["rate_error_deg_s"].isel(run=slice(0, n)).values, ax=axes[1], threshold=th_r,
                          logy=True, ylabel="e_omega [deg/s] (003 eq 37)", alpha=0.8, linewidth=0.8,
