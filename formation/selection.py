@@ -161,7 +161,14 @@ def _exclusion_reasons(ev: ConstraintEvaluation, t: int, active: np.ndarray, sin
             what = [name for name in PAIRWISE if np.any(ev.margins[name][t, i, bad] < 0)]
             out[int(i)] = f"pairwise {'/'.join(what)} with {bad}"
         elif none_feasible:
-            out[int(i)] = "no feasible set of the wanted size"
+            peers = [int(j) for j in np.flatnonzero(single) if j != i]
+            clash = [j for j in peers if not pair[i, j]]
+            if clash:
+                what = [name for name in PAIRWISE if np.any(ev.margins[name][t, i, clash] < 0)]
+                out[int(i)] = f"no feasible set of the wanted size (pairwise {'/'.join(what)} with {clash})"
+            else:
+                out[int(i)] = (f"no feasible set of the wanted size ({len(peers) + 1} candidates pass "
+                               "their own constraints)")
         else:
             out[int(i)] = "feasible but lower predicted quality"
     return out
