@@ -142,13 +142,13 @@ def select_observers(
             score[t] = scores[t, nxt]
         else:
             current = None
-        excluded.append(_exclusion_reasons(evaluation, t, active[t], single[t], pair[t], nxt is None))
+        excluded.append(_exclusion_reasons(evaluation, t, active[t], single[t], pair[t], nxt is None, k))
     return SelectionTimeline(active=active, subset=chosen, score=score, n_feasible=feas.sum(-1),
                              switches=switches, excluded=excluded)
 
 
 def _exclusion_reasons(ev: ConstraintEvaluation, t: int, active: np.ndarray, single: np.ndarray,
-                       pair: np.ndarray, none_feasible: bool) -> dict[int, str]:
+                       pair: np.ndarray, none_feasible: bool, k: int) -> dict[int, str]:
     out: dict[int, str] = {}
     members = np.flatnonzero(active)
     for i in np.flatnonzero(~active):
@@ -166,9 +166,11 @@ def _exclusion_reasons(ev: ConstraintEvaluation, t: int, active: np.ndarray, sin
             if clash:
                 what = [name for name in PAIRWISE if np.any(ev.margins[name][t, i, clash] < 0)]
                 out[int(i)] = f"no feasible set of the wanted size (pairwise {'/'.join(what)} with {clash})"
-            else:
-                out[int(i)] = (f"no feasible set of the wanted size ({len(peers) + 1} candidates pass "
+            elif len(peers) + 1 < k:
+                out[int(i)] = (f"no feasible set of the wanted size (only {len(peers) + 1} candidates pass "
                                "their own constraints)")
+            else:
+                out[int(i)] = "no feasible set of the wanted size (pairwise conflicts among the others)"
         else:
             out[int(i)] = "feasible but lower predicted quality"
     return out

@@ -15,5 +15,14 @@ def test_short_epochs_name_the_pairwise_conflict_or_the_count_of_individually_fe
     tl = select_observers(evaluate(ObservationConstraints(), r), r, 2)
     assert tl.short.all()
     assert tl.excluded[0][0] == "no feasible set of the wanted size (pairwise axis_angle with [1, 2])"
-    assert tl.excluded[1][0] == "no feasible set of the wanted size (1 candidates pass their own constraints)"
+    assert tl.excluded[1][0] == "no feasible set of the wanted size (only 1 candidates pass their own constraints)"
     assert tl.excluded[1][1].startswith("range")
+
+
+def test_a_candidate_blocked_only_by_a_conflict_between_the_others_is_told_so():
+    a = np.deg2rad(10.0)
+    r = np.array([[[60 * np.sin(a), -60 * np.cos(a), 0.0], [0.0, -50.0, 0.0], [0.0, -70.0, 0.0]]])
+    tl = select_observers(evaluate(ObservationConstraints(), r), r, 3)
+    assert tl.short[0]
+    assert tl.excluded[0][0] == "no feasible set of the wanted size (pairwise conflicts among the others)"
+    assert tl.excluded[0][1] == "no feasible set of the wanted size (pairwise axis_angle with [2])"
