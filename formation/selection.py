@@ -121,7 +121,6 @@ def select_observers(
     active = np.zeros((T, N), dtype=bool)
     chosen = np.full((T, k), -1, dtype=int)
     score = np.full(T, np.inf)
-    excluded: list[dict[int, str]] = []
     current: int | None = None
     switches = 0
     for t in range(T):
@@ -142,35 +141,49 @@ def select_observers(
             score[t] = scores[t, nxt]
         else:
             current = None
-        excluded.append(_exclusion_reasons(evaluation, t, active[t], single[t], pair[t], nxt is None, k))
+    # why the others are out: Python lists, so the per-candidate checks cost no numpy call
+    single_l, active_l, short_l = single.tolist(), active.tolist(), (chosen[:, 0] < 0).tolist()
+    excluded = [_exclusion_reasons(evaluation, t, active_l[t], single_l[t], pair[t], short_l[t], k)
+                for t in range(T)]
     return SelectionTimeline(active=active, subset=chosen, score=score, n_feasible=feas.sum(-1),
                              switches=switches, excluded=excluded)
 
 
-def _exclusion_reasons(ev: ConstraintEvaluation, t: int, active: np.ndarray, single: np.ndarray,
+def _exclusion_reasons(ev: ConstraintEvaluation, t: int, active: list[bool], single: list[bool],
                        pair: np.ndarray, none_feasible: bool, k: int) -> dict[int, str]:
     out: dict[int, str] = {}
-    members = np.flatnonzero(active)
-    for i in np.flatnonzero(~active):
-        own = ev.reasons((t,), int(i))
-        if own:
-            out[int(i)] = "; ".join(own)
+    members = [j for j, a in enumerate(active) if a]
+    alone = [j for j, ok in enumerate(single) if ok]
+    pair_l = None
+    fails: dict[str, list] = {}
+
+    def names(i, js):
+        if not fails:
+            fails.update({name: (ev.margins[name][t] < 0).tolist() for name in PAIRWISE})
+        return "/".join(name for name in PAIRWISE if any(fails[name][i][j] for j in js))
+
+    for i, a in enumerate(active):
+        if a:
             continue
-        bad = [int(j) for j in members if not pair[i, j]]
+        if not single[i]:
+            own = ev.reasons((t,), i)
+            if own:
+                out[i] = "; ".join(own)
+                continue
+        if pair_l is None:
+            pair_l = pair.tolist()
+        bad = [j for j in members if not pair_l[i][j]]
         if bad:
-            what = [name for name in PAIRWISE if np.any(ev.margins[name][t, i, bad] < 0)]
-            out[int(i)] = f"pairwise {'/'.join(what)} with {bad}"
+            out[i] = f"pairwise {names(i, bad)} with {bad}"
         elif none_feasible:
-            peers = [int(j) for j in np.flatnonzero(single) if j != i]
-            clash = [j for j in peers if not pair[i, j]]
+            clash = [j for j in alone if j != i and not pair_l[i][j]]
             if clash:
-                what = [name for name in PAIRWISE if np.any(ev.margins[name][t, i, clash] < 0)]
-                out[int(i)] = f"no feasible set of the wanted size (pairwise {'/'.join(what)} with {clash})"
-            elif len(peers) + 1 < k:
-                out[int(i)] = (f"no feasible set of the wanted size (only {len(peers) + 1} candidates pass "
-                               "their own constraints)")
+                out[i] = f"no feasible set of the wanted size (pairwise {names(i, clash)} with {clash})"
+            elif len(alone) < k:
+                out[i] = (f"no feasible set of the wanted size (only {len(alone)} candidates pass "
+                          "their own constraints)")
             else:
-                out[int(i)] = "no feasible set of the wanted size (pairwise conflicts among the others)"
+                out[i] = "no feasible set of the wanted size (pairwise conflicts among the others)"
         else:
-            out[int(i)] = "feasible but lower predicted quality"
+            out[i] = "feasible but lower predicted quality"
     return out
