@@ -12,7 +12,7 @@ drift-free slot states, and after it with circulating slot states
     .venv/bin/python -m experiments.plots_formation docs/figures
 
 which writes ``formation_3d.png`` and ``formation_selection_timeline.png`` there and prints the
-plan's figures.
+plans' figures, the timelines' summaries and the score comparison (:func:`score_comparison_data`).
 """
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ __all__ = [
     "plot_feasible_count",
     "plot_formation_3d",
     "plot_selection_timeline",
+    "score_comparison_data",
     "selection_timeline_figure",
 ]
 
@@ -226,6 +227,30 @@ def formation_figure_data(*, step_s: float = 20.0, tf_orbits: float = 0.6, n_poi
         slots_H=s.slots.r_CT_H, tf_s=tf, snapshot_s=float(t[k_snap]), camera_r_H=cam_r, camera_ids=active,
         frusta_H=frusta, keep_out_radius_m=con.keep_out_radius_m, target_radius_m=con.target_radius_m,
         cases=tuple(cases), plan_summary=summary)
+
+
+def score_comparison_data(*, ranges_m=(35.0, 60.0, 140.0), angles_deg=(2.0, 10.0, 30.0), n_points: int = 60,
+                          pixel_sigma_px: float = 0.5) -> list[dict]:
+    """Cramér–Rao score against point DOP for trailing 3-view cones (no occlusion, 1024 px, 20° FoV).
+
+    Points on a 4 m sphere; point DOP with the pixel noise as an angle (σ / f).  Returns one row
+    per (range, axis angle) with ``crlb_mdeg`` and ``point_dop_cm``.
+    """
+    from attitude.quaternion import quat_from_axis_angle
+    from formation.geometry import symmetric_views
+    from formation.quality import crlb_score
+    from formation.selection import point_dop
+    from vision.camera import PinholeCamera
+
+    cam = PinholeCamera.from_fov(1024, 1024, fov_x_deg=20.0)
+    X, _ = _sphere_points(n_points, 4.0)
+    q = quat_from_axis_angle([1.0, 0.0, 0.0], np.pi / 2)
+    cases = [(d, g) for d in ranges_m for g in angles_deg]
+    r = np.stack([symmetric_views(3, d, g, orientation=q).r_CT_H for d, g in cases])[None]
+    crlb = crlb_score(cam, X, pixel_sigma_px=pixel_sigma_px)(r)[0]
+    dop = point_dop(r, angular_sigma_rad=pixel_sigma_px / cam.fx)[0]
+    return [{"range_m": d, "axis_angle_deg": g, "crlb_mdeg": float(np.degrees(c) * 1e3), "point_dop_cm": float(100 * p)}
+            for (d, g), c, p in zip(cases, crlb, dop, strict=True)]
 
 
 # --------------------------------------------------------------------------------------- plots
@@ -457,6 +482,17 @@ def main(argv: list[str] | None = None) -> None:  # pragma: no cover - documente
         print(f"wrote {out / name}")
     for variant, summary in data.plan_summary.items():
         print(variant, {k: (round(v, 6) if isinstance(v, float) else v) for k, v in summary.items()})
+    for case in data.cases:
+        ok = np.isfinite(case.score_rad)
+        spans = np.flatnonzero(np.diff(ok.astype(int))) + 1
+        print(f"{case.label}: a feasible set at {100 * ok.mean():.1f} % of epochs, changes at "
+              f"{np.round(data.t_s[spans] / data.period_s, 3).tolist()} orbit, {case.switches} switches, "
+              f"CRLB {np.degrees(case.score_rad[ok]).min() * 1e3 if ok.any() else np.nan:.1f}–"
+              f"{np.degrees(case.score_rad[ok]).max() * 1e3 if ok.any() else np.nan:.1f} mdeg")
+    print("| range (m) | axis angle (°) | CRLB (mdeg) | point DOP (cm) |\n|---|---|---|---|")
+    for row in score_comparison_data():
+        print(f"| {row['range_m']:.0f} | {row['axis_angle_deg']:.0f} | {row['crlb_mdeg']:.1f} | "
+              f"{row['point_dop_cm']:.2f} |")
 
 
 if __name__ == "__main__":  # pragma: no cover
