@@ -80,9 +80,13 @@ def exclusion_categories(excluded: list[dict[int, str]], active: np.ndarray) -> 
 def _category(why: str) -> int:
     if why.startswith("feasible but"):
         return 1
-    if "pairwise" in why:
-        return 7 if "axis_angle" in why.split("pairwise", 1)[1].split("with")[0] else 8
-    if why.startswith("no feasible set"):
+    if "pairwise" in why and "conflicts among the others" not in why:
+        what = why.split("pairwise", 1)[1].split("with")[0]
+        if "axis_angle" in what:
+            return 7
+        if "comm" in what:
+            return 8
+    elif why.startswith("no feasible set"):
         return 2
     for key, code in _OWN:
         if key in why:

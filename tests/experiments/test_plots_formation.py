@@ -43,6 +43,12 @@ def test_exclusion_categories_follow_the_selection_reasons():
     tl = select_observers(evaluate(ObservationConstraints(), r), r, 2)
     cat = exclusion_categories(tl.excluded, tl.active)
     assert [_label(c) for c in cat[0]] == ["active", "range window", "keep-out", "pairwise axis angle", "active"]
+    reasons = [{0: "no feasible set of the wanted size (pairwise conflicts among the others)",
+                1: "no feasible set of the wanted size (pairwise comm with [3])",
+                2: "no feasible set of the wanted size (only 2 candidates pass their own constraints)",
+                3: "pointing (margin -0.1 rad); sun (margin -0.2 rad)"}]
+    assert [_label(c) for c in exclusion_categories(reasons, np.zeros((1, 4), bool))[0]] == [
+        _label(2), "pairwise comm range", _label(2), "Sun / eclipse"]
     with pytest.raises(ValueError, match="excluded"):
         exclusion_categories([{0: "cosmic rays"}], np.zeros((1, 1), bool))
 
