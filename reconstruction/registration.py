@@ -47,7 +47,9 @@ __all__ = [
 ]
 
 _COLLINEAR_TOL = 1e-9
-_CHUNK = 64  # problems per chunk in the moment pass (keeps both clouds' chunk in cache)
+_CHUNK_COORDS = 38_400  # coordinates per cloud per chunk of the moment pass (300 kB, in cache)
+_SUM_GEMM_MAX_N = 4096  # up to this many points, coordinate sums by one GEMM per chunk
+_QCP_BLOCK = 2048  # problems per block of the rotation kernel (its ~100 temporaries stay in cache)
 
 
 @dataclass(frozen=True)
@@ -121,103 +123,172 @@ def _rotation_from_correlation(S: np.ndarray, upper: np.ndarray | None = None
     rank(S) ≤ 1.
     """
     B = S.shape[0]
-    bad = ~np.all(np.isfinite(S), axis=(-2, -1))
-    c = np.ascontiguousarray(np.where(bad[:, None], 0.0, S.reshape(B, 9)).T)
+    R = np.empty((B, 3, 3))
+    collinear = np.empty(B, dtype=bool)
+    for a in range(0, B, _QCP_BLOCK):
+        e = min(a + _QCP_BLOCK, B)
+        collinear[a:e] = _qcp_block(S[a:e], None if upper is None else upper[a:e], R[a:e])
+    return R, collinear
+
+
+def _qcp_block(S: np.ndarray, upper: np.ndarray | None, R: np.ndarray) -> np.ndarray:
+    """:func:`_rotation_from_correlation` on one block (its temporaries stay in cache); writes
+    the rotations into ``R`` ``(b, 3, 3)`` and returns ``collinear``."""
+    B = S.shape[0]
+    Sf = S.reshape(B, 9)
+    bad = ~np.isfinite(Sf @ np.ones(9))  # NaN or ±inf anywhere in the row
+    anybad = bool(np.any(bad))
+    c = np.ascontiguousarray((np.where(bad[:, None], 0.0, Sf) if anybad else Sf).T)
     sxx, sxy, sxz, syx, syy, syz, szx, szy, szz = c
-    # N(S) (Horn 1987), symmetric: 10 distinct entries
-    n00 = sxx + syy + szz
-    n11 = sxx - syy - szz
-    n22 = -sxx + syy - szz
-    n33 = -sxx - syy + szz
+    f2 = np.einsum("ij,ij->j", c, c)
+    a00 = syy * szz - syz * szy
+    a01 = syz * szx - syx * szz
+    a02 = syx * szy - syy * szx
+    detS = sxx * a00 + sxy * a01 + sxz * a02
+    adjS2 = a00 * a00 + a01 * a01 + a02 * a02
+    for u, v, x, y in ((sxz, szy, sxy, szz), (sxx, szz, sxz, szx), (sxy, szx, sxx, szy),
+                       (sxy, syz, sxz, syy), (sxz, syx, sxx, syz), (sxx, syy, sxy, syx)):
+        a = u * v - x * y
+        adjS2 += a * a
+    collinear = ~(np.sqrt(adjS2) > _COLLINEAR_TOL * f2)
+    p2 = -2.0 * f2
+    p1 = -8.0 * detS
+    p0 = f2 * f2 - 4.0 * adjS2
+    lam = np.sqrt(3.0 * f2)
+    if upper is not None:
+        lam = np.where(np.isfinite(upper), np.minimum(lam, upper * (1.0 + 1e-12)), lam)
+    two_p2 = 2.0 * p2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for _ in range(60):
+            l2 = lam * lam
+            fval = (l2 + p2) * l2 + p1 * lam + p0
+            fder = (4.0 * l2 + two_p2) * lam + p1
+            step = np.where(fder > 0, fval / fder, 0.0)
+            lam = lam - step
+            if not np.any(np.abs(step) > 1e-15 * np.abs(lam)):
+                break
+    # N(S) − λI (Horn 1987), symmetric
+    m00 = sxx + syy + szz - lam
+    m11 = sxx - syy - szz - lam
+    m22 = syy - sxx - szz - lam
+    m33 = szz - sxx - syy - lam
     n01 = syz - szy
     n02 = szx - sxz
     n03 = sxy - syx
     n12 = sxy + syx
     n13 = szx + sxz
     n23 = syz + szy
-    f2 = np.einsum("ij,ij->j", c, c)
-    # cofactors of S: ‖adj S‖² = σ1²σ2² + σ1²σ3² + σ2²σ3² (collinearity test) and det S
-    a00 = syy * szz - syz * szy
-    a01 = syz * szx - syx * szz
-    a02 = syx * szy - syy * szx
-    detS = sxx * a00 + sxy * a01 + sxz * a02
-    a10 = sxz * szy - sxy * szz
-    a11 = sxx * szz - sxz * szx
-    a12 = sxy * szx - sxx * szy
-    a20 = sxy * syz - sxz * syy
-    a21 = sxz * syx - sxx * syz
-    a22 = sxx * syy - sxy * syx
-    adjS2 = (a00 * a00 + a01 * a01 + a02 * a02 + a10 * a10 + a11 * a11 + a12 * a12
-             + a20 * a20 + a21 * a21 + a22 * a22)
-    collinear = ~(np.sqrt(adjS2) > _COLLINEAR_TOL * f2)
-
-    def det4_parts(m00, m01, m02, m03, m11, m12, m13, m22, m23, m33):
-        # 2×2 minors of rows (0, 1) and rows (2, 3) of a symmetric 4×4 matrix
-        s0 = m00 * m11 - m01 * m01
-        s1 = m00 * m12 - m01 * m02
-        s2 = m00 * m13 - m01 * m03
-        s3 = m01 * m12 - m11 * m02
-        s4 = m01 * m13 - m11 * m03
-        s5 = m02 * m13 - m12 * m03
-        c5 = m22 * m33 - m23 * m23
-        c4 = m12 * m33 - m13 * m23
-        c3 = m12 * m23 - m13 * m22
-        c2 = m02 * m33 - m03 * m23
-        c1 = m02 * m23 - m03 * m22
-        c0 = m02 * m13 - m03 * m12
-        return (s0, s1, s2, s3, s4, s5), (c0, c1, c2, c3, c4, c5)
-
-    (s0, s1, s2, s3, s4, s5), (k0, k1, k2, k3, k4, k5) = det4_parts(
-        n00, n01, n02, n03, n11, n12, n13, n22, n23, n33)
-    # characteristic polynomial λ⁴ + c2 λ² + c1 λ + c0 (Horn 1987; c0 = det N)
-    p2 = -2.0 * f2
-    p1 = -8.0 * detS
-    p0 = s0 * k5 - s1 * k4 + s2 * k3 + s3 * k2 - s4 * k1 + s5 * k0
-    lam = np.sqrt(3.0 * f2)  # ≥ σ1 + σ2 + σ3 ≥ λ_max
-    if upper is not None:
-        lam = np.where(np.isfinite(upper), np.minimum(lam, upper * (1.0 + 1e-12)), lam)
-    for _ in range(60):
-        l2 = lam * lam
-        fval = (l2 + p2) * l2 + p1 * lam + p0
-        fder = (4.0 * l2 + 2.0 * p2) * lam + p1
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.where(fder > 0, fval / fder, 0.0)
-        lam = lam - step
-        if not np.any(np.abs(step) > 1e-15 * np.abs(lam)):
-            break
-    # adjugate of A = N − λI (symmetric): its columns are parallel to the eigenvector
-    m00, m11, m22, m33 = n00 - lam, n11 - lam, n22 - lam, n33 - lam
-    (s0, s1, s2, s3, s4, s5), (k0, k1, k2, k3, k4, k5) = det4_parts(
-        m00, n01, n02, n03, m11, n12, n13, m22, n23, m33)
-    adj = np.stack([
-        np.stack([m11 * k5 - n12 * k4 + n13 * k3, -n01 * k5 + n02 * k4 - n03 * k3,
-                  n13 * s5 - n23 * s4 + m33 * s3, -n12 * s5 + m22 * s4 - n23 * s3]),
-        np.stack([-n01 * k5 + n12 * k2 - n13 * k1, m00 * k5 - n02 * k2 + n03 * k1,
-                  -n03 * s5 + n23 * s2 - m33 * s1, n02 * s5 - m22 * s2 + n23 * s1]),
-        np.stack([n01 * k4 - m11 * k2 + n13 * k0, -m00 * k4 + n01 * k2 - n03 * k0,
-                  n03 * s4 - n13 * s2 + m33 * s0, -n02 * s4 + n12 * s2 - n23 * s0]),
-        np.stack([-n01 * k3 + m11 * k1 - n12 * k0, m00 * k3 - n01 * k1 + n02 * k0,
-                  -n03 * s3 + n13 * s1 - n23 * s0, n02 * s3 - n12 * s1 + m22 * s0]),
-    ])  # (4, 4, B); symmetric up to rounding
-    norms = np.sqrt(np.einsum("ijb,ijb->jb", adj, adj))
-    best = np.argmax(norms, axis=0)
-    cols = np.arange(B)
-    q = adj[:, best, cols]
-    qn = norms[best, cols]
+    s0 = m00 * m11 - n01 * n01
+    s1 = m00 * n12 - n01 * n02
+    s2 = m00 * n13 - n01 * n03
+    s3 = n01 * n12 - m11 * n02
+    s4 = n01 * n13 - m11 * n03
+    s5 = n02 * n13 - n12 * n03
+    k5 = m22 * m33 - n23 * n23
+    k4 = n12 * m33 - n13 * n23
+    k3 = n12 * n23 - n13 * m22
+    k2 = n02 * m33 - n03 * n23
+    k1 = n02 * n23 - n03 * m22
+    # upper triangle of adj(N − λI) (symmetric, rank 1 = c v vᵀ): its columns are ∝ v
+    b00 = m11 * k5 - n12 * k4 + n13 * k3
+    b01 = -n01 * k5 + n02 * k4 - n03 * k3
+    b02 = n13 * s5 - n23 * s4 + m33 * s3
+    b03 = -n12 * s5 + m22 * s4 - n23 * s3
+    b11 = m00 * k5 - n02 * k2 + n03 * k1
+    b12 = -n03 * s5 + n23 * s2 - m33 * s1
+    b13 = n02 * s5 - m22 * s2 + n23 * s1
+    b22 = n03 * s4 - n13 * s2 + m33 * s0
+    b23 = -n02 * s4 + n12 * s2 - n23 * s0
+    b33 = n02 * s3 - n12 * s1 + m22 * s0
+    e01, e02, e03, e12, e13, e23 = b01 * b01, b02 * b02, b03 * b03, b12 * b12, b13 * b13, b23 * b23
+    best = b00 * b00 + e01 + e02 + e03
+    w, x, y, z = b00, b01, b02, b03
+    for nj, cj in ((b11 * b11 + e01 + e12 + e13, (b01, b11, b12, b13)),
+                   (b22 * b22 + e02 + e12 + e23, (b02, b12, b22, b23)),
+                   (b33 * b33 + e03 + e13 + e23, (b03, b13, b23, b33))):
+        m = nj > best
+        w, x, y, z = (np.where(m, cj[0], w), np.where(m, cj[1], x), np.where(m, cj[2], y),
+                      np.where(m, cj[3], z))
+        best = np.where(m, nj, best)
+    qn = np.sqrt(best)
     weak = ~(qn > 1e-10 * np.maximum(lam, 1e-300) ** 3)
     with np.errstate(divide="ignore", invalid="ignore"):
-        w, x, y, z = q / qn
-    R = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                  2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                  2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)
-    R = R.reshape(B, 3, 3)
+        s = 2.0 / best
+        xs, ys, zs = x * s, y * s, z * s
+        wx, wy, wz = w * xs, w * ys, w * zs
+        xx, xy, xz = x * xs, x * ys, x * zs
+        yy, yz, zz = y * ys, y * zs, z * zs
+    Rf = R.reshape(B, 9)
+    Rf[:, 0] = 1.0 - (yy + zz)
+    Rf[:, 1] = xy - wz
+    Rf[:, 2] = xz + wy
+    Rf[:, 3] = xy + wz
+    Rf[:, 4] = 1.0 - (xx + zz)
+    Rf[:, 5] = yz - wx
+    Rf[:, 6] = xz - wy
+    Rf[:, 7] = yz + wx
+    Rf[:, 8] = 1.0 - (xx + yy)
     sel = weak & np.isfinite(lam) & ~bad
     if np.any(sel):
         R[sel] = proper_rotation_from_svd(np.swapaxes(S[sel], -1, -2))
-    if np.any(bad):
+    if anybad:
         R[bad] = np.nan
         collinear = collinear | bad
-    return R, collinear
+    return collinear
+
+
+def _moment_chunks(P, Q, w, c, pairs, T6, M, S, sp, sq, gp, gq) -> None:
+    """Raw moments of :func:`_moments`, chunk by chunk, into ``S, sp, sq, gp, gq``."""
+    B, N = P.shape[0], P.shape[1]
+    if w is None and P.flags.c_contiguous and Q.flags.c_contiguous:
+        # views made once: the loop below only slices them
+        Pf, Qf = P.reshape(B, 3 * N), Q.reshape(B, 3 * N)
+        if pairs:
+            P2t = np.swapaxes(P.reshape(B, N // 2, 6), -1, -2)
+            Q2 = Q.reshape(B, N // 2, 6)
+        for a in range(0, B, c):
+            e = min(a + c, B)
+            pf, qf = Pf[a:e], Qf[a:e]
+            if pairs:
+                t6 = np.matmul(P2t[a:e], Q2[a:e], out=T6[:e - a])
+                np.add(t6[:, :3, :3], t6[:, 3:, 3:], out=S[a:e])
+            else:
+                np.matmul(np.swapaxes(P[a:e], -1, -2), Q[a:e], out=S[a:e])
+            if M is not None:
+                np.matmul(pf, M, out=sp[a:e])
+                np.matmul(qf, M, out=sq[a:e])
+            else:
+                np.sum(P[a:e], axis=1, out=sp[a:e])
+                np.sum(Q[a:e], axis=1, out=sq[a:e])
+            np.vecdot(pf, pf, out=gp[a:e])
+            np.vecdot(qf, qf, out=gq[a:e])
+        return
+    for a in range(0, B, c):
+        e = min(a + c, B)
+        k = e - a
+        p = np.ascontiguousarray(P[a:e])
+        q = np.ascontiguousarray(Q[a:e])
+        if w is None:
+            pw, qw = p, q
+        else:
+            ww = w[a:e, :, None]
+            pw, qw = p * ww, q * ww
+        if pairs:
+            t6 = np.matmul(np.swapaxes(pw.reshape(k, N // 2, 6), -1, -2),
+                           q.reshape(k, N // 2, 6), out=T6[:k])
+            np.add(t6[:, :3, :3], t6[:, 3:, 3:], out=S[a:e])
+        else:
+            np.matmul(np.swapaxes(pw, -1, -2), q, out=S[a:e])
+        pf, qf = p.reshape(k, 3 * N), q.reshape(k, 3 * N)
+        pwf, qwf = pw.reshape(k, 3 * N), qw.reshape(k, 3 * N)
+        if M is not None:
+            np.matmul(pwf, M, out=sp[a:e])
+            np.matmul(qwf, M, out=sq[a:e])
+        else:
+            np.sum(pw, axis=1, out=sp[a:e])
+            np.sum(qw, axis=1, out=sq[a:e])
+        np.vecdot(pwf, pf, out=gp[a:e])
+        np.vecdot(qwf, qf, out=gq[a:e])
 
 
 def _moments(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None
@@ -225,39 +296,35 @@ def _moments(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None
     """Weighted centroids, centred correlation ``S = Σ w p̃ q̃ᵀ``, total weight and centred second
     moment ``G = Σ w (|p̃|² + |q̃|²)`` of ``(B, N, 3)`` clouds, in one pass over the data.
 
-    Processed in chunks so that the raw moments of each chunk are formed while it is in cache.
-    A problem with a non-finite row gives non-finite moments (the caller masks and recomputes).
+    The data are read once, in chunks of about 300 kB per cloud: the first product (BLAS) streams
+    a chunk into cache and the other raw moments of that chunk are formed while it is there.
+    ``S`` comes from one small GEMM per problem on the points taken two at a time
+    (``(6, N/2) @ (N/2, 6)``, whose diagonal 3×3 blocks add up to ``Σ p qᵀ``; about twice as fast
+    as the ``(3, N) @ (N, 3)`` product, which has too little work per BLAS call), the coordinate
+    sums from one GEMM per chunk with a fixed ``(3N, 3)`` 0/1 matrix, and ``Σ |p|²`` from row dot
+    products.  Weights scale a chunk of each cloud once.  A problem with a non-finite row gives
+    non-finite moments (the caller masks and recomputes).
     """
     B, N = P.shape[0], P.shape[1]
+    c = max(1, _CHUNK_COORDS // max(3 * N, 1))
     S = np.empty((B, 3, 3))
     sp = np.empty((B, 3))
     sq = np.empty((B, 3))
-    g = np.empty(B)
-    if w is None:
-        one = np.ones(N)
-        for a in range(0, B, _CHUNK):
-            p, q = P[a:a + _CHUNK], Q[a:a + _CHUNK]
-            np.matmul(np.swapaxes(p, -1, -2), q, out=S[a:a + _CHUNK])
-            np.matmul(one, p, out=sp[a:a + _CHUNK])
-            np.matmul(one, q, out=sq[a:a + _CHUNK])
-            g[a:a + _CHUNK] = (np.einsum("bni,bni->b", p, p) + np.einsum("bni,bni->b", q, q))
-        sw = np.full(B, float(N))
-    else:
-        for a in range(0, B, _CHUNK):
-            p, q, ww = P[a:a + _CHUNK], Q[a:a + _CHUNK], w[a:a + _CHUNK]
-            pw = p * ww[..., None]
-            np.matmul(np.swapaxes(pw, -1, -2), q, out=S[a:a + _CHUNK])
-            np.matmul(ww[:, None, :], p, out=sp[a:a + _CHUNK, None, :])
-            np.matmul(ww[:, None, :], q, out=sq[a:a + _CHUNK, None, :])
-            g[a:a + _CHUNK] = (np.einsum("bni,bni->b", pw, p)
-                               + np.einsum("bni,bni,bn->b", q, q, ww))
-        sw = np.sum(w, axis=-1)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    gp = np.empty(B)
+    gq = np.empty(B)
+    pairs = N % 2 == 0 and N >= 8
+    T6 = np.empty((min(c, B), 6, 6)) if pairs else None
+    M = np.tile(np.eye(3), (N, 1)) if N <= _SUM_GEMM_MAX_N else None  # (3N, 3): Pf @ M = Σ p
+    with np.errstate(invalid="ignore", over="ignore"):  # ±inf input: the caller raises
+        _moment_chunks(P, Q, w, c, pairs, T6, M, S, sp, sq, gp, gq)
+    g = gp + gq
+    sw = np.full(B, float(N)) if w is None else np.sum(w, axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         pbar = sp / sw[:, None]
         qbar = sq / sw[:, None]
-    S -= sw[:, None, None] * pbar[:, :, None] * qbar[:, None, :]
-    offset = sw * (np.sum(pbar * pbar, -1) + np.sum(qbar * qbar, -1))
-    G = g - offset
+        S -= sw[:, None, None] * pbar[:, :, None] * qbar[:, None, :]
+        offset = sw * (np.sum(pbar * pbar, -1) + np.sum(qbar * qbar, -1))
+        G = g - offset
     # cancellation guard: clouds far from the origin relative to their spread are recentred
     redo = np.nonzero(offset > 1e6 * np.abs(G))[0]
     if redo.size:
@@ -318,7 +385,7 @@ def _kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
         rows = np.ones((B, N), bool) if w is None else w > 0
         rows[ib] = wb > 0
     R, collinear = _rotation_from_correlation(S, 0.5 * G)
-    t = qbar - (R @ pbar[..., None])[..., 0]
+    t = qbar - np.einsum("bij,bj->bi", R, pbar)
     lam = np.einsum("bij,bji->b", R, S)
     with np.errstate(invalid="ignore", divide="ignore"):
         rms = np.sqrt(np.maximum(G - 2.0 * lam, 0.0) / sw)
@@ -377,14 +444,16 @@ def fit_rigid(P, Q, weights=None) -> RigidRegistration:
     Qf = Q.reshape((-1, N, 3))
     wf = None if w is None else w.reshape((-1, N))
     R, t, code, npts, rms, rows = _kabsch_flat(Pf, Qf, wf)
-    if rows is None:
-        rows = np.ones(Pf.shape[:2], bool) if wf is None else wf > 0
     ok = code == 0
+    if rows is None and wf is None:
+        inliers = np.repeat(ok, N).reshape(batch + (N,))
+    else:
+        inliers = ((wf > 0 if rows is None else rows) & ok[:, None]).reshape(batch + (N,))
     reason = np.array(_KABSCH_REASONS)[code]
     n_in = np.where(ok, npts, 0)
     return RigidRegistration(
         R=R.reshape(batch + (3, 3)), t=t.reshape(batch + (3,)),
-        cov=np.full(batch + (6, 6), np.nan), inliers=(rows & ok[:, None]).reshape(batch + (N,)),
+        cov=np.full(batch + (6, 6), np.nan), inliers=inliers,
         n_inliers=n_in.reshape(batch), rms_m=rms.reshape(batch), chi2=np.full(batch, np.nan),
         dof=(3 * n_in - 6).reshape(batch), ok=_scalar(ok.reshape(batch)),
         failure_reason=_scalar(reason.reshape(batch)), method="kabsch",
