@@ -136,7 +136,8 @@ def _qcp_block(S: np.ndarray, upper: np.ndarray | None, R: np.ndarray) -> np.nda
     the rotations into ``R`` ``(b, 3, 3)`` and returns ``collinear``."""
     B = S.shape[0]
     Sf = S.reshape(B, 9)
-    bad = ~np.isfinite(Sf @ np.ones(9))  # NaN or ±inf anywhere in the row
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(Sf @ np.ones(9))  # NaN or ±inf anywhere in the row
     anybad = bool(np.any(bad))
     c = np.ascontiguousarray((np.where(bad[:, None], 0.0, Sf) if anybad else Sf).T)
     sxx, sxy, sxz, syx, syy, syz, szx, szy, szz = c
@@ -323,7 +324,7 @@ def _moments(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None
         pbar = sp / sw[:, None]
         qbar = sq / sw[:, None]
         S -= sw[:, None, None] * pbar[:, :, None] * qbar[:, None, :]
-        offset = sw * (np.sum(pbar * pbar, -1) + np.sum(qbar * qbar, -1))
+        offset = sw * (np.vecdot(pbar, pbar) + np.vecdot(qbar, qbar))
         G = g - offset
     # cancellation guard: clouds far from the origin relative to their spread are recentred
     redo = np.nonzero(offset > 1e6 * np.abs(G))[0]
@@ -370,7 +371,8 @@ def _kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
     pbar, qbar, S, sw, G = _moments(P, Q, w)
     npts = np.full(B, N) if w is None else np.sum(w > 0, axis=-1)
     rows = None
-    bad = ~(np.all(np.isfinite(S), axis=(-2, -1)) & np.isfinite(G))
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(S.reshape(B, 9) @ np.ones(9) + G)  # NaN or ±inf in S or G
     if np.any(bad):
         ib = np.nonzero(bad)[0]
         Pb, Qb = P[ib], Q[ib]
