@@ -187,8 +187,8 @@ class Increment:
     R_H : ndarray (3, 3)
         Estimated ΔR in H (NaN when not ok).
     cov_rotvec_H : ndarray (3, 3)
-        Covariance of the left rotation-vector error, rad² (from ML, else the Cramér–Rao bound of
-        the matched cloud); NaN when unavailable.
+        Covariance of the left rotation-vector error, rad² (from ML, else from the fit's residuals);
+        NaN when unavailable.
     n_matches : int
         Associated point pairs.
     n_inliers : int
@@ -213,8 +213,8 @@ def register_frames(cfg: Config, prev: Frame, nxt: Frame, *, rng: np.random.Gene
                     with_covariance: bool = True) -> Increment:
     """Associate two frames' tracks and register the matched clouds (method: ``estimator.registration``).
 
-    ``with_covariance``: when the method gives none (Kabsch, RANSAC), bound it by the Cramér–Rao
-    covariance of the matched cloud (needed by the filter, not by the error maps).
+    ``with_covariance``: when the method gives none (Kabsch, RANSAC), estimate it from the fit's
+    residuals (:func:`_residual_rotation_covariance`; needed by the filter, not by the error maps).
     """
     if not prev.ok:
         return _failed_increment(f"previous epoch: {prev.obs.status if not prev.obs.ok else prev.tri.failure_reason}")
@@ -240,13 +240,29 @@ def register_frames(cfg: Config, prev: Frame, nxt: Frame, *, rng: np.random.Gene
         return _failed_increment(f"registration: {reg.failure_reason}", k)
     cov = reg.cov[:3, :3]
     if with_covariance and not np.all(np.isfinite(cov)):
-        inl = np.asarray(reg.inliers, dtype=bool)
-        vis = prev.tri.views_used[assoc.idx_prev][inl]
-        b = attitude_increment_crlb(P[inl], prev.obs.K, prev.obs.T_CW, pixel_sigma_px=prev.obs.pixel_sigma_px,
-                                    visible=vis, R_delta=reg.R)
-        cov = b.cov_rotation
+        cov = _residual_rotation_covariance(P, Q, reg)
     return Increment(R_H=reg.R, cov_rotvec_H=cov, n_matches=k, n_inliers=int(reg.n_inliers), ok=True,
                      failure_reason="")
+
+
+def _residual_rotation_covariance(P: np.ndarray, Q: np.ndarray, reg: RigidRegistration) -> np.ndarray:
+    """Rotation covariance of a least-squares rigid fit from its own residuals (Kabsch, RANSAC).
+
+    With isotropic residuals of variance ``σ² = Σ‖rᵢ‖² / (3N − 6)`` per axis, the left rotation
+    error of the fit has covariance ``σ² (Σᵢ [Q̃ᵢ×]ᵀ [Q̃ᵢ×])⁻¹`` (``Q̃`` the inlier points about their
+    centroid).  Unlike the Cramér–Rao bound this describes the estimator actually used: the spread of
+    its residuals includes the depth-elongated triangulation errors it does not weight.
+    """
+    inl = np.asarray(reg.inliers, dtype=bool) & np.all(np.isfinite(P), -1) & np.all(np.isfinite(Q), -1)
+    n = int(inl.sum())
+    if n < 3:
+        return np.full((3, 3), np.nan)
+    p, q = P[inl], Q[inl]
+    r = q - p @ reg.R.T - reg.t
+    sigma2 = float(np.sum(r * r) / max(3 * n - 6, 1))
+    qc = q - q.mean(axis=0)
+    info = np.sum(qc * qc) * np.eye(3) - qc.T @ qc  # Σ [q̃×]ᵀ[q̃×] = Σ (|q̃|² I − q̃ q̃ᵀ)
+    return sigma2 * np.linalg.inv(info)
 
 
 # ----------------------------------------------------------------------------- Experiment A
