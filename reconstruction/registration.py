@@ -116,7 +116,8 @@ def _rotation_from_correlation(S: np.ndarray, upper: np.ndarray | None = None
     Newton's method on the characteristic quartic (Theobald's QCP) and the eigenvector as a column
     of adj(N − λI).  A unit quaternion is always a proper rotation, so this is the determinant-
     corrected solution ``U diag(1, 1, det UVᵀ) Vᵀ`` of 000 eq (37) / FLAG P000-10 — at a small
-    fraction of the cost of a batched 3×3 SVD (all arithmetic runs on contiguous ``(B,)`` arrays).
+    fraction of the cost of a batched 3×3 SVD (all arithmetic runs on contiguous ``(b,)`` arrays,
+    in blocks of ``_QCP_BLOCK`` problems so that the temporaries stay in cache).
     Elements whose eigenvector is ill-determined fall back to the SVD.  ``upper`` is an optional
     upper bound of λ_max (``(G_P + G_Q)/2`` of the centred second moments), which makes Newton
     converge in a few steps for good fits.  Returns ``(R, collinear)``, ``collinear`` flagging
