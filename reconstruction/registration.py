@@ -365,7 +365,7 @@ def _kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
     """Weighted Kabsch on flat ``(B, N, 3)`` problems (NaN rows ignored).
 
     Returns ``R, t, code, npts, rms, rows``: failure code per problem (0 ok, 1 too few points,
-    2 collinear), usable-point count, weighted RMS residual (m), and the ``(B, N)`` mask of usable
+    2 collinear, 3 coincident), usable-point count, weighted RMS residual (m), and the ``(B, N)`` mask of usable
     rows (``None`` when every row of every problem is finite).
     """
     B, N = P.shape[0], P.shape[1]
@@ -392,8 +392,12 @@ def _kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
     lam = np.einsum("bij,bji->b", R, S)
     with np.errstate(invalid="ignore", divide="ignore"):
         rms = np.sqrt(np.maximum(G - 2.0 * lam, 0.0) / sw)
+    # A cloud without spread (all points coincident, up to rounding) leaves S at rounding level,
+    # where the relative collinearity test above cannot see it: compare |S| with G.
+    coincident = np.sqrt(np.einsum("bij,bij->b", S, S)) <= 1e-9 * G
     code = np.zeros(B, dtype=np.int8)
     code[collinear] = 2
+    code[coincident] = 3
     code[npts < 3] = 1
     fail = code != 0
     if np.any(fail):
@@ -403,7 +407,7 @@ def _kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
     return R, t, code, npts, rms, rows
 
 
-_KABSCH_REASONS = ("", "fewer than 3 usable points", "points are collinear")
+_KABSCH_REASONS = ("", "fewer than 3 usable points", "points are collinear", "points are coincident")
 
 
 def _residual_rms(P, Q, R, t, mask):

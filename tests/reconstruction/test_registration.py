@@ -284,3 +284,14 @@ def test_open3d_fpfh_ransac_recovers_a_large_rotation_without_correspondences():
     assert np.linalg.norm(fit.t - t) < 0.05
     few = register_icp(P[:2], Q, max_correspondence_m=0.3)
     assert not few.ok and "fewer than 3" in few.failure_reason
+
+
+def test_coincident_points_are_reported_not_fitted():
+    """All points of P at one place (far from the origin): the rotation is undetermined."""
+    rng = np.random.default_rng(5)
+    P = np.tile(np.array([1000.0, -250.0, 40.0]), (50, 1)) + 1e-13 * rng.normal(size=(50, 3))
+    Q = rng.normal(size=(50, 3))
+    res = fit_rigid(P, Q)
+    assert not res.ok
+    assert "coincident" in str(res.failure_reason)
+    assert np.all(np.isnan(res.R))
