@@ -352,7 +352,7 @@ def closed_loop(cfg: Config, seed_seq: np.random.SeedSequence, *,
         "final_rms_attitude_error_deg": float(np.sqrt(np.nanmean(att_err[tail] ** 2))),
         "final_rms_rate_error_deg_s": float(np.sqrt(np.nanmean(rate_err[tail] ** 2))),
         "median_increment_error_deg": float(np.nanmedian(inc_err)) if used.any() else float("nan"),
-        "median_tracks_per_epoch": float(np.median(n_tracks)),
+        "median_tracks_per_observed_epoch": float(np.median(n_tracks[n_tracks > 0])) if (n_tracks > 0).any() else 0.0,
         "epochs_without_observer_set": int(np.sum(~obs_plan.active.any(axis=1))),
         "reconfiguration": obs_plan.reconfiguration,
     }

@@ -331,7 +331,7 @@ def sweep_figures(ds: xr.Dataset, fig_dir: Path) -> list[Path]:
             paths += convergence_map_figures(
                 ds, fig_dir, frac=ds["filter_fraction_converged"], tmed=ds["filter_median_convergence_time_s"],
                 name="convergence_maps_filter",
-                title="EKF convergence driven by each cell's measured e_dtheta (003 Figs 11-12 approach)")
+                title="EKF convergence driven by each cell's measured registration error (003 Figs 11-12 approach)")
         return paths
     if cell == "closed_loop" and {"distance_m", "axis_angle_deg"} <= grid:
         frac = ds["converged"].mean("trial", skipna=True)
