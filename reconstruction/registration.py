@@ -2,7 +2,8 @@
 
 * :func:`fit_rigid` — weighted Kabsch/Umeyama with the determinant correction, the closed form
   of 003 eq (11)–(13) as corrected by FLAGs P003-7/P003-8, identical to 000 eq (27)–(38) with
-  FLAG P000-10.  Batched over any leading axes; a batch of 10⁴ problems is one call.
+  FLAG P000-10.  Batched over any leading axes; a batch of 10⁴ problems is one call of a
+  compiled (Numba) kernel, :mod:`reconstruction._kernels`.
 * :func:`fit_rigid_robust` — minimal 3-point RANSAC (batched over problems and hypotheses), then
   weighted refits on the consensus set (FLAG P003-6's RANSAC check).
 * :func:`fit_rigid_ml` — maximum likelihood with both clouds' per-point covariances:
@@ -25,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2 as _chi2
 
+from reconstruction import _kernels
 from reconstruction._geometry import (
     as_float,
     check_covariances,
@@ -46,7 +48,7 @@ __all__ = [
     "register_fpfh_ransac",
 ]
 
-_COLLINEAR_TOL = 1e-9
+_COLLINEAR_TOL = _kernels.COLLINEAR_TOL
 _CHUNK_COORDS = 38_400  # coordinates per cloud per chunk of the moment pass (300 kB, in cache)
 _SUM_GEMM_MAX_N = 4096  # up to this many points, coordinate sums by one GEMM per chunk
 _QCP_BLOCK = 2048  # problems per block of the rotation kernel (its ~100 temporaries stay in cache)
@@ -361,13 +363,59 @@ def _prepare(P, Q, weights, *, names=("P", "Q"), scan=True):
     return P, Q, w
 
 
+def _readonly_c(a: np.ndarray) -> np.ndarray:
+    """C-contiguous float64 read-only view (a copy only when needed): the compiled kernel then
+    sees one array type, whether the caller's arrays are writable or broadcast views."""
+    v = np.ascontiguousarray(a, dtype=float).view()
+    v.flags.writeable = False
+    return v
+
+
 def _kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
-    """Weighted Kabsch on flat ``(B, N, 3)`` problems (NaN rows ignored).
+    """Weighted Kabsch on flat ``(B, N, 3)`` problems (NaN rows ignored), compiled.
 
     Returns ``R, t, code, npts, rms, rows``: failure code per problem (0 ok, 1 too few points,
-    2 collinear, 3 coincident), usable-point count, weighted RMS residual (m), and the ``(B, N)`` mask of usable
-    rows (``None`` when every row of every problem is finite).
+    2 collinear, 3 coincident), usable-point count, weighted RMS residual (m), and the ``(B, N)``
+    mask of usable rows (``None`` when every row of every problem is finite).
+
+    The compiled kernel :func:`reconstruction._kernels.kabsch_batch` reads each problem's points
+    once (weighted raw moments; a second pass, from cache, only for problems with NaN rows or
+    clouds far from the origin for their size), then solves the rotations of 64 problems at a
+    time with the closed-form quaternion of :func:`_rotation_from_correlation`.  It agrees with
+    :func:`_kabsch_flat_numpy`, the NumPy reference, to rounding, with the same failure codes;
+    the rare problems whose quaternion is ill-determined are handed to that reference (which
+    solves them by SVD).
     """
+    B, N = P.shape[0], P.shape[1]
+    Pf = _readonly_c(P).reshape(B, 3 * N)
+    Qf = _readonly_c(Q).reshape(B, 3 * N)
+    weighted = w is not None
+    W = _readonly_c(w if weighted else np.zeros((1, N)))
+    R = np.empty((B, 3, 3))
+    t = np.empty((B, 3))
+    rms = np.empty(B)
+    code = np.empty(B, dtype=np.int8)
+    npts = np.empty(B, dtype=np.int64)
+    flags = np.empty(B, dtype=np.uint8)
+    _kernels.kabsch_batch(Pf, Qf, W, weighted, R, t, rms, code, npts, flags)
+    rows = None
+    if np.any(flags):
+        if np.any(flags & _kernels.FLAG_INF):
+            raise ValueError("P, Q: contain infinite values (use NaN for absent points)")
+        ib = np.nonzero(flags & _kernels.FLAG_NONFINITE_ROWS)[0]
+        if ib.size:
+            rows = np.ones((B, N), bool) if w is None else w > 0
+            rows[ib] &= np.all(np.isfinite(P[ib]), -1) & np.all(np.isfinite(Q[ib]), -1)
+        iw = np.nonzero(flags & _kernels.FLAG_SVD)[0]
+        if iw.size:
+            R[iw], t[iw], code[iw], npts[iw], rms[iw], _ = _kabsch_flat_numpy(
+                P[iw], Q[iw], None if w is None else w[iw])
+    return R, t, code, npts, rms, rows
+
+
+def _kabsch_flat_numpy(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
+    """NumPy reference of :func:`_kabsch_flat` (same returns): the moments of :func:`_moments`,
+    then :func:`_rotation_from_correlation` on the whole batch."""
     B, N = P.shape[0], P.shape[1]
     pbar, qbar, S, sw, G = _moments(P, Q, w)
     npts = np.full(B, N) if w is None else np.sum(w > 0, axis=-1)
@@ -394,7 +442,7 @@ def _kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
         rms = np.sqrt(np.maximum(G - 2.0 * lam, 0.0) / sw)
     # A cloud without spread (all points coincident, up to rounding) leaves S at rounding level,
     # where the relative collinearity test above cannot see it: compare |S| with G.
-    coincident = np.sqrt(np.einsum("bij,bij->b", S, S)) <= 1e-9 * G
+    coincident = np.sqrt(np.einsum("bij,bij->b", S, S)) <= _kernels.COINCIDENT_TOL * G
     code = np.zeros(B, dtype=np.int8)
     code[collinear] = 2
     code[coincident] = 3
@@ -425,8 +473,8 @@ def fit_rigid(P, Q, weights=None) -> RigidRegistration:
     weighted centroids (30), centred correlation ``B = Σ w (Q̃)(P̃)ᵀ = U D Vᵀ`` (33)–(34),
     ``R = U diag(1, 1, det U Vᵀ) Vᵀ`` (37) and ``t = Q̄ − R P̄`` (38), with the corrections of
     SEEDS_SPEC FLAGs P000-10, P003-7 and P003-8 (6 DOF, ≥ 3 non-collinear points).  The rotation is
-    computed with Horn's equivalent quaternion eigenproblem in closed form, and the moments in
-    one cache-friendly pass, so a batch of 10⁴ problems is a single fast call.
+    computed with Horn's equivalent quaternion eigenproblem in closed form, by a compiled kernel
+    that reads each problem's points once, so a batch of 10⁴ problems is a single fast call.
 
     Parameters
     ----------
@@ -456,7 +504,9 @@ def fit_rigid(P, Q, weights=None) -> RigidRegistration:
         inliers = np.repeat(ok, N).reshape(batch + (N,))
     else:
         inliers = ((wf > 0 if rows is None else rows) & ok[:, None]).reshape(batch + (N,))
-    reason = np.array(_KABSCH_REASONS)[code]
+    # the string dtype fits the reasons present (an all-ok batch gives a small array)
+    used = np.bincount(code, minlength=len(_KABSCH_REASONS)) > 0
+    reason = np.array([r if u else "" for r, u in zip(_KABSCH_REASONS, used, strict=True)])[code]
     n_in = np.where(ok, npts, 0)
     return RigidRegistration(
         R=R.reshape(batch + (3, 3)), t=t.reshape(batch + (3,)),

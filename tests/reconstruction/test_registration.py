@@ -295,3 +295,95 @@ def test_coincident_points_are_reported_not_fitted():
     assert not res.ok
     assert "coincident" in str(res.failure_reason)
     assert np.all(np.isnan(res.R))
+
+
+def _reference_batch(rng, B, N):
+    """Noisy motions with weights (20% zero), NaN rows in either cloud, and at the front the
+    special problems: 2 usable points, collinear, coincident, all weights zero, a cloud 10⁴ m
+    from the origin for 1 m of spread (the compiled kernel's second, centred pass)."""
+    R, t = _random_motion(rng, (B,))
+    P = rng.uniform(-2.0, 2.0, (B, N, 3))
+    Q = _apply(R, t, P) + 0.05 * rng.standard_normal(P.shape)
+    w = rng.uniform(0.1, 2.0, (B, N))
+    w[rng.random((B, N)) < 0.2] = 0.0
+    P[rng.random((B, N)) < 0.05] = np.nan
+    Q[rng.random((B, N)) < 0.05, 1] = np.nan
+    P[0, 2:] = np.nan
+    P[1] = np.linspace(-1.0, 1.0, N)[:, None] * np.array([1.0, -2.0, 0.5])
+    Q[1] = P[1] + 1.0
+    P[2] = np.array([3.0, -1.0, 2.0]) + 1e-14 * rng.standard_normal((N, 3))
+    w[3] = 0.0
+    P[4] += 1e4
+    Q[4] = _apply(R[4], t[4], P[4]) + 0.05 * rng.standard_normal((N, 3))
+    return P, Q, w
+
+
+@pytest.mark.parametrize("weighted", [True, False])
+def test_compiled_kabsch_matches_the_numpy_reference_with_weights_nan_rows_and_degeneracies(
+        weighted):
+    """The Numba kernel behind ``fit_rigid`` against the NumPy path it replaced, problem by
+    problem: same failure codes, usable-point counts and row masks; R, t, RMS to rounding."""
+    from reconstruction.registration import _kabsch_flat, _kabsch_flat_numpy
+
+    P, Q, w = _reference_batch(np.random.default_rng(11), 600, 40)
+    w = w if weighted else None
+    R, t, code, npts, rms, rows = _kabsch_flat(P, Q, w)
+    R0, t0, code0, npts0, rms0, rows0 = _kabsch_flat_numpy(P, Q, w)
+    np.testing.assert_array_equal(code, code0)
+    assert list(code[:4]) == [1, 2, 3, 1 if weighted else 0] and np.all(code[4:] == 0)
+    np.testing.assert_array_equal(npts, npts0)
+    np.testing.assert_array_equal(rows, rows0)
+    ok = code == 0
+    assert np.all(np.isnan(R[~ok])) and np.all(np.isnan(t[~ok])) and np.all(np.isnan(rms[~ok]))
+    np.testing.assert_allclose(R[ok], R0[ok], rtol=0, atol=1e-9)
+    scale = 1.0 + np.abs(t0[ok]).max(axis=-1, keepdims=True)  # problem 4: t ~ 10⁴ m
+    assert np.all(np.abs(t[ok] - t0[ok]) < 1e-9 * scale)
+    # rms comes from G − 2 tr(R S), which cancels ~3 digits at this noise: 1e-9 of G/Σw
+    np.testing.assert_allclose(rms[ok], rms0[ok], rtol=1e-8)
+
+
+def test_compiled_kabsch_recovers_motion_far_from_the_origin():
+    """Clouds 10⁶ m away with 1 m of spread: raw moments alone would lose 12 digits; the
+    kernel's centred second pass keeps the exact motion (analytic truth)."""
+    rng = np.random.default_rng(12)
+    R, t = _random_motion(rng, (20,))
+    P = 1e6 * np.array([1.0, -0.5, 0.3]) + rng.standard_normal((20, 30, 3))
+    fit = fit_rigid(P, _apply(R, t, P))
+    assert np.all(fit.ok)
+    np.testing.assert_allclose(fit.R, R, atol=1e-9)
+    np.testing.assert_allclose(fit.rms_m, 0.0, atol=1e-6)
+
+
+def test_ill_determined_quaternions_fall_back_to_the_svd_with_an_optimal_fit():
+    """Q = −P for a cloud with two equal principal moments: two 180° rotations fit equally well,
+    the quaternion eigenvector is ill-determined for some orientations and those problems go
+    to the SVD reference; every fit is a proper rotation with the optimal (equal) residual."""
+    from reconstruction import _kernels
+    from reconstruction.registration import _kabsch_flat_numpy, _readonly_c
+
+    base = np.array([[2.0, 0, 0], [-2, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
+    Rr = Rotation.random(2000, random_state=13).as_matrix()
+    P = base @ np.swapaxes(Rr, -1, -2)
+    Q = -P
+    flags = np.empty(2000, np.uint8)
+    out = (np.empty((2000, 3, 3)), np.empty((2000, 3)), np.empty(2000), np.empty(2000, np.int8),
+           np.empty(2000, np.int64), flags)
+    _kernels.kabsch_batch(_readonly_c(P.reshape(2000, -1)), _readonly_c(Q.reshape(2000, -1)),
+                          _readonly_c(np.zeros((1, 6))), False, *out)
+    assert np.count_nonzero(flags & _kernels.FLAG_SVD) > 0
+    fit = fit_rigid(P, Q)
+    assert np.all(fit.ok)
+    np.testing.assert_allclose(np.linalg.det(fit.R), 1.0, atol=1e-12)
+    _, _, _, _, rms0, _ = _kabsch_flat_numpy(P, Q, None)
+    np.testing.assert_allclose(fit.rms_m, rms0, rtol=1e-9)
+    # the optimum, a 180° turn about a minor axis: R p + p = 2 p_minor, Σ = 2 · 2² over 6 points
+    np.testing.assert_allclose(fit.rms_m, np.sqrt(8 / 6), rtol=1e-9)
+
+
+def test_infinite_coordinates_raise_value_error():
+    P = np.random.default_rng(14).standard_normal((4, 10, 3))
+    P[2, 3, 1] = np.inf
+    with pytest.raises(ValueError, match="infinite"):
+        fit_rigid(P, P)
+    with pytest.raises(ValueError, match="infinite"):
+        fit_rigid(P, P, np.ones(10))

@@ -1,0 +1,420 @@
+"""Compiled (Numba) kernel of the batched Kabsch fit of :mod:`reconstruction.registration`.
+
+:func:`kabsch_batch` reads each problem's points once, for its weighted raw moments (a loop
+that vectorises), then treats the problems of a block of ``BLOCK`` together: centred moments,
+Horn's quaternion eigenproblem in closed form (Theobald's QCP), ``t`` and the RMS residual, in
+branch-free loops over the problems.  It reproduces, problem by problem, the NumPy reference
+``registration._kabsch_flat_numpy`` (same failure codes; NaN rows skipped the same way); the rare
+problems that the reference hands to an SVD are flagged for the caller.  Compiled on first use
+(a few seconds) and cached on disk (``cache=True``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+COLLINEAR_TOL = 1e-9  # rank(S) <= 1 when ‖adj S‖ <= COLLINEAR_TOL ‖S‖²
+COINCIDENT_TOL = 1e-9  # no spread when ‖S‖ <= COINCIDENT_TOL G
+RECENTRE_RATIO = 1e3  # second pass about the centroids when Σw(|p̄|² + |q̄|²) > RECENTRE_RATIO G
+
+FLAG_NONFINITE_ROWS = 1  # the problem has rows with NaN (skipped)
+FLAG_SVD = 2  # the quaternion is ill-determined: the caller refits with the SVD reference
+FLAG_INF = 4  # an infinite coordinate was seen: the caller raises
+
+_JIT = dict(cache=True, nogil=True, error_model="numpy")
+# the sums of the fast pass may be reassociated (so that they vectorise); nothing is assumed
+# about NaN or inf, which are detected
+_FAST = {"reassoc", "contract"}
+
+
+@numba.njit(fastmath=_FAST, **_JIT)
+def _moments_raw(P, Q, W, b, weighted):
+    """Raw moments of problem ``b`` over every row (a NaN row shows as NaN in the sums).
+
+    ``P, Q`` flat ``(B, 3N)`` clouds, ``W`` ``(B, N)`` weights when ``weighted``.  Returns
+    ``(Σw, Σw p (3), Σw q (3), Σw p qᵀ (9, row-major), Σw (|p|² + |q|²), #(w > 0))``.  Every sum
+    has its own accumulator, so that the vectorised loop is not one chain of dependent additions.
+    """
+    n = P.shape[1] // 3
+    sw = 0.0
+    npos = 0
+    ax = ay = az = bx = by = bz = 0.0
+    cxx = cxy = cxz = cyx = cyy = cyz = czx = czy = czz = 0.0
+    gx = gy = gz = hx = hy = hz = 0.0
+    for i in range(n):
+        px = P[b, 3 * i]
+        py = P[b, 3 * i + 1]
+        pz = P[b, 3 * i + 2]
+        qx = Q[b, 3 * i]
+        qy = Q[b, 3 * i + 1]
+        qz = Q[b, 3 * i + 2]
+        if weighted:
+            wi = W[b, i]
+            sw += wi
+            npos += wi > 0.0
+            fx, fy, fz = wi * px, wi * py, wi * pz
+            kx, ky, kz = wi * qx, wi * qy, wi * qz
+        else:
+            fx, fy, fz = px, py, pz
+            kx, ky, kz = qx, qy, qz
+        ax += fx
+        ay += fy
+        az += fz
+        bx += kx
+        by += ky
+        bz += kz
+        gx += fx * px
+        gy += fy * py
+        gz += fz * pz
+        hx += kx * qx
+        hy += ky * qy
+        hz += kz * qz
+        cxx += fx * qx
+        cxy += fx * qy
+        cxz += fx * qz
+        cyx += fy * qx
+        cyy += fy * qy
+        cyz += fy * qz
+        czx += fz * qx
+        czy += fz * qy
+        czz += fz * qz
+    if not weighted:
+        sw = float(n)
+        npos = n
+    g = (gx + gy + gz) + (hx + hy + hz)
+    return (sw, ax, ay, az, bx, by, bz, cxx, cxy, cxz, cyx, cyy, cyz, czx, czy, czz, g, npos)
+
+
+@numba.njit(**_JIT)
+def _moments_about(P, Q, W, b, weighted, x0, y0, z0, u0, v0, s0):
+    """:func:`_moments_raw` of ``p − (x0, y0, z0)`` and ``q − (u0, v0, s0)``, skipping the rows
+    with a non-finite coordinate in either cloud; also returns ``(skipped any, saw an inf)``."""
+    n = P.shape[1] // 3
+    sw = 0.0
+    npos = 0
+    ax = ay = az = bx = by = bz = 0.0
+    cxx = cxy = cxz = cyx = cyy = cyz = czx = czy = czz = 0.0
+    g = 0.0
+    skipped = False
+    inf = False
+    for i in range(n):
+        px, py, pz = P[b, 3 * i], P[b, 3 * i + 1], P[b, 3 * i + 2]
+        qx, qy, qz = Q[b, 3 * i], Q[b, 3 * i + 1], Q[b, 3 * i + 2]
+        if not (math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)
+                and math.isfinite(qx) and math.isfinite(qy) and math.isfinite(qz)):
+            skipped = True
+            if (math.isinf(px) or math.isinf(py) or math.isinf(pz) or math.isinf(qx)
+                    or math.isinf(qy) or math.isinf(qz)):
+                inf = True
+            continue
+        wi = W[b, i] if weighted else 1.0
+        sw += wi
+        npos += wi > 0.0
+        dx, dy, dz = px - x0, py - y0, pz - z0
+        ex, ey, ez = qx - u0, qy - v0, qz - s0
+        g += wi * (dx * dx + dy * dy + dz * dz + ex * ex + ey * ey + ez * ez)
+        dx *= wi
+        dy *= wi
+        dz *= wi
+        ax += dx
+        ay += dy
+        az += dz
+        bx += wi * ex
+        by += wi * ey
+        bz += wi * ez
+        cxx += dx * ex
+        cxy += dx * ey
+        cxz += dx * ez
+        cyx += dy * ex
+        cyy += dy * ey
+        cyz += dy * ez
+        czx += dz * ex
+        czy += dz * ey
+        czz += dz * ez
+    return ((sw, ax, ay, az, bx, by, bz, cxx, cxy, cxz, cyx, cyy, cyz, czx, czy, czz, g, npos),
+            skipped, inf)
+
+
+# rows of the per-block scratch arrays (a struct of arrays, so that the loops over the problems of
+# a block vectorise): raw moments (as returned by _moments_raw), centred moments, results
+_M_G = 16
+_N_M = 17
+_SXX, _SXY, _SXZ, _SYX, _SYY, _SYZ, _SZX, _SZY, _SZZ = range(9)
+_G, _SW, _PX, _PY, _PZ, _QX, _QY, _QZ, _RECENTRE = range(9, 18)
+_N_C = 18
+_LAM, _P2, _P1, _P0, _COLLINEAR, _COINCIDENT, _FINITE, _WEAK, _TX, _TY, _TZ, _RMS = range(9, 21)
+_N_OUT = 21
+BLOCK = 64  # problems per block
+
+
+@numba.njit(**_JIT)
+def _centre(mo, nb, st):
+    """Centroids and moments about them (``S = Σw p qᵀ − Σw p̄ q̄ᵀ``, ``G`` likewise) of the
+    ``nb`` problems of a block, from their raw moments ``mo`` into ``st``; flags ``_RECENTRE``
+    where that subtraction cancels too many digits."""
+    for k in range(nb):
+        sw = mo[0, k]
+        px, py, pz = mo[1, k] / sw, mo[2, k] / sw, mo[3, k] / sw
+        qx, qy, qz = mo[4, k] / sw, mo[5, k] / sw, mo[6, k] / sw
+        offset = sw * (px * px + py * py + pz * pz + qx * qx + qy * qy + qz * qz)
+        G = mo[_M_G, k] - offset
+        st[_RECENTRE, k] = 1.0 if offset > RECENTRE_RATIO * abs(G) else 0.0
+        st[_SXX, k] = mo[7, k] - sw * px * qx
+        st[_SXY, k] = mo[8, k] - sw * px * qy
+        st[_SXZ, k] = mo[9, k] - sw * px * qz
+        st[_SYX, k] = mo[10, k] - sw * py * qx
+        st[_SYY, k] = mo[11, k] - sw * py * qy
+        st[_SYZ, k] = mo[12, k] - sw * py * qz
+        st[_SZX, k] = mo[13, k] - sw * pz * qx
+        st[_SZY, k] = mo[14, k] - sw * pz * qy
+        st[_SZZ, k] = mo[15, k] - sw * pz * qz
+        st[_G, k] = G
+        st[_SW, k] = sw
+        st[_PX, k], st[_PY, k], st[_PZ, k] = px, py, pz
+        st[_QX, k], st[_QY, k], st[_QZ, k] = qx, qy, qz
+
+
+@numba.njit(**_JIT)
+def _recentre(P, Q, W, b, weighted, st, k):
+    """Redo the centred moments of problem ``b`` (column ``k`` of ``st``) by a second pass over
+    its points, about the centroids of the first (clouds far from the origin for their size)."""
+    sw = st[_SW, k]
+    x0, y0, z0 = st[_PX, k], st[_PY, k], st[_PZ, k]
+    u0, v0, s0 = st[_QX, k], st[_QY, k], st[_QZ, k]
+    m, _, _ = _moments_about(P, Q, W, b, weighted, x0, y0, z0, u0, v0, s0)
+    dx, dy, dz = m[1] / sw, m[2] / sw, m[3] / sw
+    ex, ey, ez = m[4] / sw, m[5] / sw, m[6] / sw
+    st[_G, k] = m[16] - sw * (dx * dx + dy * dy + dz * dz + ex * ex + ey * ey + ez * ez)
+    st[_SXX, k] = m[7] - sw * dx * ex
+    st[_SXY, k] = m[8] - sw * dx * ey
+    st[_SXZ, k] = m[9] - sw * dx * ez
+    st[_SYX, k] = m[10] - sw * dy * ex
+    st[_SYY, k] = m[11] - sw * dy * ey
+    st[_SYZ, k] = m[12] - sw * dy * ez
+    st[_SZX, k] = m[13] - sw * dz * ex
+    st[_SZY, k] = m[14] - sw * dz * ey
+    st[_SZZ, k] = m[15] - sw * dz * ez
+    st[_PX, k], st[_PY, k], st[_PZ, k] = x0 + dx, y0 + dy, z0 + dz
+    st[_QX, k], st[_QY, k], st[_QZ, k] = u0 + ex, v0 + ey, s0 + ez
+
+
+@numba.njit(**_JIT)
+def _rotations(st, nb, out):
+    """Rotation maximising ``tr(R S)``, ``t`` and the RMS residual of the ``nb`` problems in
+    ``st`` (rows ``_SXX`` … ``_QZ``), into ``out`` (rows 0–8: R row-major, ``_TX`` … ``_RMS``,
+    ``_COLLINEAR``, ``_COINCIDENT``, ``_FINITE``, ``_WEAK``).
+
+    The closed form of ``registration._qcp_block`` lane by lane: Horn's quaternion, Theobald's QCP
+    (Newton on the characteristic quartic of N(S) from ``min(√3 ‖S‖, G/2)``, all problems of the
+    block until every one has converged), the eigenvector as the largest column of adj(N − λI)
+    (``_WEAK`` when it is too small to be trusted), ``rank(S) <= 1`` flagged ``_COLLINEAR``.
+    Branch-free loops over the problems, so that they vectorise.
+    """
+    for k in range(nb):
+        sxx, sxy, sxz = st[_SXX, k], st[_SXY, k], st[_SXZ, k]
+        syx, syy, syz = st[_SYX, k], st[_SYY, k], st[_SYZ, k]
+        szx, szy, szz = st[_SZX, k], st[_SZY, k], st[_SZZ, k]
+        f2 = (sxx * sxx + sxy * sxy + sxz * sxz + syx * syx + syy * syy + syz * syz
+              + szx * szx + szy * szy + szz * szz)
+        a00 = syy * szz - syz * szy
+        a01 = syz * szx - syx * szz
+        a02 = syx * szy - syy * szx
+        detS = sxx * a00 + sxy * a01 + sxz * a02
+        a10 = sxz * szy - sxy * szz
+        a11 = sxx * szz - sxz * szx
+        a12 = sxy * szx - sxx * szy
+        a20 = sxy * syz - sxz * syy
+        a21 = sxz * syx - sxx * syz
+        a22 = sxx * syy - sxy * syx
+        adjS2 = (a00 * a00 + a01 * a01 + a02 * a02 + a10 * a10 + a11 * a11 + a12 * a12
+                 + a20 * a20 + a21 * a21 + a22 * a22)
+        out[_COLLINEAR, k] = 0.0 if math.sqrt(adjS2) > COLLINEAR_TOL * f2 else 1.0
+        G = st[_G, k]
+        out[_COINCIDENT, k] = 1.0 if math.sqrt(f2) <= COINCIDENT_TOL * G else 0.0  # no spread
+        out[_FINITE, k] = 1.0 if math.isfinite(f2) and math.isfinite(G) else 0.0
+        out[_P2, k] = -2.0 * f2
+        out[_P1, k] = -8.0 * detS
+        out[_P0, k] = f2 * f2 - 4.0 * adjS2
+        lam = math.sqrt(3.0 * f2)
+        upper = 0.5 * G * (1.0 + 1e-12)
+        out[_LAM, k] = min(lam, upper) if math.isfinite(upper) else lam
+    for _ in range(60):
+        moving = 0
+        for k in range(nb):
+            lam = out[_LAM, k]
+            p2 = out[_P2, k]
+            p1 = out[_P1, k]
+            l2 = lam * lam
+            fval = (l2 + p2) * l2 + p1 * lam + out[_P0, k]
+            fder = (4.0 * l2 + 2.0 * p2) * lam + p1
+            step = fval / fder if fder > 0.0 else 0.0
+            lam = lam - step
+            out[_LAM, k] = lam
+            moving += abs(step) > 1e-15 * abs(lam)
+        if moving == 0:
+            break
+    for k in range(nb):
+        sxx, sxy, sxz = st[_SXX, k], st[_SXY, k], st[_SXZ, k]
+        syx, syy, syz = st[_SYX, k], st[_SYY, k], st[_SYZ, k]
+        szx, szy, szz = st[_SZX, k], st[_SZY, k], st[_SZZ, k]
+        lam = out[_LAM, k]
+        # N(S) − λI (Horn 1987), symmetric
+        m00 = sxx + syy + szz - lam
+        m11 = sxx - syy - szz - lam
+        m22 = syy - sxx - szz - lam
+        m33 = szz - sxx - syy - lam
+        n01 = syz - szy
+        n02 = szx - sxz
+        n03 = sxy - syx
+        n12 = sxy + syx
+        n13 = szx + sxz
+        n23 = syz + szy
+        s0 = m00 * m11 - n01 * n01
+        s1 = m00 * n12 - n01 * n02
+        s2 = m00 * n13 - n01 * n03
+        s3 = n01 * n12 - m11 * n02
+        s4 = n01 * n13 - m11 * n03
+        s5 = n02 * n13 - n12 * n03
+        k5 = m22 * m33 - n23 * n23
+        k4 = n12 * m33 - n13 * n23
+        k3 = n12 * n23 - n13 * m22
+        k2 = n02 * m33 - n03 * n23
+        k1 = n02 * n23 - n03 * m22
+        # upper triangle of adj(N − λI) (symmetric, rank 1 = c v vᵀ): its columns are ∝ v
+        b00 = m11 * k5 - n12 * k4 + n13 * k3
+        b01 = -n01 * k5 + n02 * k4 - n03 * k3
+        b02 = n13 * s5 - n23 * s4 + m33 * s3
+        b03 = -n12 * s5 + m22 * s4 - n23 * s3
+        b11 = m00 * k5 - n02 * k2 + n03 * k1
+        b12 = -n03 * s5 + n23 * s2 - m33 * s1
+        b13 = n02 * s5 - m22 * s2 + n23 * s1
+        b22 = n03 * s4 - n13 * s2 + m33 * s0
+        b23 = -n02 * s4 + n12 * s2 - n23 * s0
+        b33 = n02 * s3 - n12 * s1 + m22 * s0
+        e01, e02, e03 = b01 * b01, b02 * b02, b03 * b03
+        e12, e13, e23 = b12 * b12, b13 * b13, b23 * b23
+        best = b00 * b00 + e01 + e02 + e03
+        w, x, y, z = b00, b01, b02, b03
+        nj = b11 * b11 + e01 + e12 + e13
+        use = nj > best
+        w = b01 if use else w
+        x = b11 if use else x
+        y = b12 if use else y
+        z = b13 if use else z
+        best = nj if use else best
+        nj = b22 * b22 + e02 + e12 + e23
+        use = nj > best
+        w = b02 if use else w
+        x = b12 if use else x
+        y = b22 if use else y
+        z = b23 if use else z
+        best = nj if use else best
+        nj = b33 * b33 + e03 + e13 + e23
+        use = nj > best
+        w = b03 if use else w
+        x = b13 if use else x
+        y = b23 if use else y
+        z = b33 if use else z
+        best = nj if use else best
+        l3 = max(lam, 1e-300)
+        weak = not (math.sqrt(best) > 1e-10 * (l3 * l3 * l3)) and math.isfinite(lam)
+        out[_WEAK, k] = 1.0 if weak else 0.0
+        s = 2.0 / best
+        xs, ys, zs = x * s, y * s, z * s
+        wx, wy, wz = w * xs, w * ys, w * zs
+        xx, xy, xz = x * xs, x * ys, x * zs
+        yy, yz, zz = y * ys, y * zs, z * zs
+        r00, r01, r02 = 1.0 - (yy + zz), xy - wz, xz + wy
+        r10, r11, r12 = xy + wz, 1.0 - (xx + zz), yz - wx
+        r20, r21, r22 = xz - wy, yz + wx, 1.0 - (xx + yy)
+        out[0, k], out[1, k], out[2, k] = r00, r01, r02
+        out[3, k], out[4, k], out[5, k] = r10, r11, r12
+        out[6, k], out[7, k], out[8, k] = r20, r21, r22
+        px, py, pz = st[_PX, k], st[_PY, k], st[_PZ, k]
+        out[_TX, k] = st[_QX, k] - (r00 * px + r01 * py + r02 * pz)
+        out[_TY, k] = st[_QY, k] - (r10 * px + r11 * py + r12 * pz)
+        out[_TZ, k] = st[_QZ, k] - (r20 * px + r21 * py + r22 * pz)
+        # residual Σw|q̃ − R p̃|² = G − 2 tr(R S)
+        trRS = (r00 * sxx + r01 * syx + r02 * szx + r10 * sxy + r11 * syy + r12 * szy
+                + r20 * sxz + r21 * syz + r22 * szz)
+        out[_RMS, k] = math.sqrt(max(st[_G, k] - 2.0 * trRS, 0.0) / st[_SW, k])
+
+
+@numba.njit(**_JIT)
+def kabsch_batch(P, Q, W, weighted, R, t, rms, code, npts, flags):
+    """Weighted Kabsch fits of ``B`` problems, written into the output arrays.
+
+    Blocks of ``BLOCK`` problems: the raw moments of each problem in one pass over its points
+    (:func:`_moments_raw`; the rows with NaN skipped by :func:`_moments_about` where the sums
+    come out non-finite), then, for the block together, the centred moments (:func:`_centre`,
+    with a second pass for the rare problems that need it), the rotations, ``t`` and the RMS
+    (:func:`_rotations`).
+
+    Parameters
+    ----------
+    P, Q : ndarray (B, 3N) float64, C-contiguous
+        Flat clouds (rows ``(x, y, z)`` of each point one after the other), m.
+    W : ndarray (B, N) float64
+        Weights (read only when ``weighted``; pass any ``(1, N)`` array otherwise).
+    weighted : bool
+    R : ndarray (B, 3, 3), t : ndarray (B, 3), rms : ndarray (B,)
+        Outputs (NaN for failures and for problems flagged ``FLAG_SVD``).
+    code : ndarray (B,) int8
+        0 ok, 1 fewer than 3 usable points, 2 collinear, 3 coincident.
+    npts : ndarray (B,) int64
+        Usable points (finite in both clouds, w > 0).
+    flags : ndarray (B,) uint8
+        ``FLAG_NONFINITE_ROWS``, ``FLAG_SVD``, ``FLAG_INF`` bits.
+    """
+    B = P.shape[0]
+    mo = np.empty((_N_M, BLOCK))
+    st = np.empty((_N_C, BLOCK))
+    out = np.empty((_N_OUT, BLOCK))
+    for a in range(0, B, BLOCK):
+        nb = min(BLOCK, B - a)
+        for k in range(nb):
+            b = a + k
+            m = _moments_raw(P, Q, W, b, weighted)
+            f = 0
+            # any NaN or ±inf coordinate (weighted or not) makes Σw(|p|² + |q|²) non-finite; when
+            # it is finite, so are the other sums (Cauchy–Schwarz)
+            if not math.isfinite(m[_M_G]):  # the same sums over the finite rows
+                m, skipped, inf = _moments_about(P, Q, W, b, weighted, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                                 0.0)
+                f = (FLAG_NONFINITE_ROWS if skipped else 0) | (FLAG_INF if inf else 0)
+            (mo[0, k], mo[1, k], mo[2, k], mo[3, k], mo[4, k], mo[5, k], mo[6, k], mo[7, k],
+             mo[8, k], mo[9, k], mo[10, k], mo[11, k], mo[12, k], mo[13, k], mo[14, k], mo[15, k],
+             mo[16, k], npts[b]) = m
+            flags[b] = f
+        _centre(mo, nb, st)
+        for k in range(nb):
+            if st[_RECENTRE, k] != 0.0:
+                _recentre(P, Q, W, a + k, weighted, st, k)
+        _rotations(st, nb, out)
+        for k in range(nb):
+            b = a + k
+            c = 0
+            if npts[b] < 3:
+                c = 1
+            elif out[_COINCIDENT, k] != 0.0:
+                c = 3
+            elif out[_FINITE, k] == 0.0 or out[_COLLINEAR, k] != 0.0:
+                c = 2
+            elif out[_WEAK, k] != 0.0:
+                flags[b] |= FLAG_SVD
+            code[b] = c
+            if c == 0 and not flags[b] & FLAG_SVD:
+                R[b, 0, 0], R[b, 0, 1], R[b, 0, 2] = out[0, k], out[1, k], out[2, k]
+                R[b, 1, 0], R[b, 1, 1], R[b, 1, 2] = out[3, k], out[4, k], out[5, k]
+                R[b, 2, 0], R[b, 2, 1], R[b, 2, 2] = out[6, k], out[7, k], out[8, k]
+                t[b, 0], t[b, 1], t[b, 2] = out[_TX, k], out[_TY, k], out[_TZ, k]
+                rms[b] = out[_RMS, k]
+            else:
+                for i in range(3):
+                    t[b, i] = np.nan
+                    for j in range(3):
+                        R[b, i, j] = np.nan
+                rms[b] = np.nan
