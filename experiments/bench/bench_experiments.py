@@ -84,10 +84,10 @@ def run(*, quick: bool = False) -> list[BenchRow]:
     wall2, peak = _sweep(grid, trials, steps, workers=2)
     rows.append(BenchRow(f"003 Figs 5-6 grid, geometric mode, 2 workers ({size})", wall2, "s",
                          note="target < 300 s for the full grid" + (" (quick: reduced grid)" if quick else "")))
-    sub, sub_trials = QUICK_GRID, (3 if quick else 10)
-    t1, _ = _sweep(sub, sub_trials, 3, workers=1)
-    t2, _ = _sweep(sub, sub_trials, 3, workers=2)
-    rows.append(duration_row(f"Dask speed-up 1 -> 2 workers (8 cells x {sub_trials} trials x 3 steps)", t2, t1,
+    sub, sub_trials, sub_steps = QUICK_GRID, (3 if quick else 25), (3 if quick else 10)
+    t1, _ = _sweep(sub, sub_trials, sub_steps, workers=1)
+    t2, _ = _sweep(sub, sub_trials, sub_steps, workers=2)
+    rows.append(duration_row(f"Dask speed-up 1 -> 2 workers (8 cells x {sub_trials} trials x {sub_steps} steps)", t2, t1,
                              "same sweep on 1 worker", note="ratio = speed-up (ideal 2 on 2 free cores)"))
     rows.append(BenchRow("peak resident memory per worker during the grid sweep",
                          max(peak.values()) if peak else float("nan"), "MB", note="target < 2048 MB"))
