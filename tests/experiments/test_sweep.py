@@ -180,3 +180,14 @@ def test_common_random_numbers_give_every_cell_the_same_draws(tmp_path):
     ind = open_sweep(tmp_path / "ind").rms_angle_deg
     assert not np.allclose(ind.sel(angle_error_deg=1.0).values, 2 * ind.sel(angle_error_deg=0.5).values,
                            rtol=1e-6)
+
+
+def test_sweep_on_an_external_scheduler_address_gives_the_reference_dataset(reference, tmp_path):
+    """--scheduler ADDRESS: the same sweep on a cluster the caller started (here an in-process one)."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        report = run_sweep(ATTITUDE_NOISE_CELL, GRID, trials=TRIALS, out=tmp_path, seed=SEED,
+                           scheduler=cluster.scheduler_address)
+    assert report.workers == 2 and report.n_computed == 12
+    xr.testing.assert_identical(open_sweep(tmp_path), reference)
