@@ -107,7 +107,7 @@ def write_result(result: ScenarioResult, out: Path) -> None:
     tmp = Path(tempfile.mkdtemp(prefix=".coobs-", dir=out.parent))
     try:
         result.dataset.to_netcdf(tmp / "result.nc", engine="h5netcdf")
-        (tmp / "summary.json").write_text(json.dumps(result.summary, indent=2, default=_json_default) + "\n")
+        (tmp / "summary.json").write_text(json.dumps(result.summary, indent=2, default=json_default) + "\n")
         out.mkdir(parents=True, exist_ok=True)
         for name in ("result.nc", "summary.json"):
             shutil.move(str(tmp / name), str(out / name))
@@ -115,7 +115,8 @@ def write_result(result: ScenarioResult, out: Path) -> None:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _json_default(o: Any) -> Any:
+def json_default(o: Any) -> Any:
+    """``json.dumps`` fallback for numpy scalars and arrays and paths (summaries of runs and sweeps)."""
     import numpy as np
 
     if isinstance(o, np.generic):

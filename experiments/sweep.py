@@ -730,19 +730,11 @@ def redraw(out: Path | str) -> list[Path]:
 def _write_summary(out: Path, summary: dict[str, Any]) -> Path:
     path = out / "summary.json"
     tmp = out / ".summary.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=2, default=_json_default) + "\n")
+    from experiments.scenarios import json_default
+
+    tmp.write_text(json.dumps(summary, indent=2, default=json_default) + "\n")
     tmp.replace(path)
     return path
-
-
-def _json_default(o: Any) -> Any:
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, Path):
-        return str(o)
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
 @app.command()
