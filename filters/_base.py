@@ -329,6 +329,29 @@ class AttitudeFilter:
         Pn = IKH @ P @ IKH.mT + K @ R @ K.mT
         return dx, Pn, passed, rejected, nis
 
+    def _absolute_inputs(self, state: FilterState, q_NT_meas, cov_rotvec_T):
+        """Checked rows of an absolute-attitude measurement: ``(z (M, 4), cov (M, 3, 3), valid (M,))``."""
+        self._check_state(state)
+        M = state.n_trials
+        z, valid = self._measurement_rows(q_NT_meas, M, 4, "q_NT_meas")
+        cov, cov_ok = self._cov_rows(cov_rotvec_T, M, "cov_rotvec_T")
+        return z, cov, valid & cov_ok & ~state.failed
+
+    def _increment_inputs(self, state: FilterState, dq_H, cov_rotvec_H, R_NH_prev, R_NH_now, cov_side):
+        """Checked rows of a Hill-frame increment, converted to N: ``(dq_N, cov_N, valid)``."""
+        self._check_state(state)
+        if not state.has_clone:
+            raise ValueError("state: no clone; call clone(state) at the earlier epoch first")
+        if cov_side not in ("left", "right"):
+            raise ValueError(f"cov_side: expected 'left' or 'right', got {cov_side!r}")
+        M = state.n_trials
+        dqH, valid = self._measurement_rows(dq_H, M, 4, "dq_H")
+        cov, cov_ok = self._cov_rows(cov_rotvec_H, M, "cov_rotvec_H")
+        Rp = self._frame_rows(R_NH_prev, M, "R_NH_prev")
+        Rn = self._frame_rows(R_NH_now, M, "R_NH_now")
+        dqN, covN = self._increment_in_N(dqH, cov, Rp, Rn, cov_side)
+        return dqN, covN, valid & cov_ok & ~state.failed
+
     @staticmethod
     def _increment_in_N(dq_H, cov_H, R_NH_prev, R_NH_now, cov_side):
         """ΔR_N = R_NH(now) ΔR_H R_NH(prev)ᵀ and the left-perturbation covariance in N."""

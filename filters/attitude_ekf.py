@@ -169,11 +169,7 @@ class AttitudeEKF(AttitudeFilter):
             error ``e`` quoted as one number use
             :func:`filters.noise_mapping.rotvec_covariance_from_angle_error`.
         """
-        self._check_state(state)
-        M = state.n_trials
-        z, valid = self._measurement_rows(q_NT_meas, M, 4, "q_NT_meas")
-        cov, cov_ok = self._cov_rows(cov_rotvec_T, M, "cov_rotvec_T")
-        valid &= cov_ok & ~state.failed
+        z, cov, valid = self._absolute_inputs(state, q_NT_meas, cov_rotvec_T)
         q, w, P, qc, _ = self._sanitized(state)
         z = np.where(np.sum(z * q, axis=1, keepdims=True) < 0, -z, z)
         Lq = left_matrix(q)
@@ -208,18 +204,8 @@ class AttitudeEKF(AttitudeFilter):
         R_NH_prev, R_NH_now : (3, 3) or (M, 3, 3) arrays
             Hill frame at the clone epoch and now (``v_N = R_NH v_H``).
         """
-        self._check_state(state)
-        if not state.has_clone:
-            raise ValueError("state: no clone; call clone(state) at the earlier epoch first")
-        if cov_side not in ("left", "right"):
-            raise ValueError(f"cov_side: expected 'left' or 'right', got {cov_side!r}")
+        dqN, covN, valid = self._increment_inputs(state, dq_H, cov_rotvec_H, R_NH_prev, R_NH_now, cov_side)
         M = state.n_trials
-        dqH, valid = self._measurement_rows(dq_H, M, 4, "dq_H")
-        cov, cov_ok = self._cov_rows(cov_rotvec_H, M, "cov_rotvec_H")
-        valid &= cov_ok & ~state.failed
-        Rp = self._frame_rows(R_NH_prev, M, "R_NH_prev")
-        Rn = self._frame_rows(R_NH_now, M, "R_NH_now")
-        dqN, covN = self._increment_in_N(dqH, cov, Rp, Rn, cov_side)
         q, w, P, qc, _ = self._sanitized(state)
         h = qmul(q, conj(qc))
         z = np.where(np.sum(dqN * h, axis=1, keepdims=True) < 0, -dqN, dqN)

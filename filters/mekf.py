@@ -134,11 +134,7 @@ class MEKF(AttitudeFilter):
 
         NaN rows (or ``None``) are missing measurements: those trials are only propagated.
         """
-        self._check_state(state)
-        M = state.n_trials
-        z, valid = self._measurement_rows(q_NT_meas, M, 4, "q_NT_meas")
-        cov, cov_ok = self._cov_rows(cov_rotvec_T, M, "cov_rotvec_T")
-        valid &= cov_ok & ~state.failed
+        z, cov, valid = self._absolute_inputs(state, q_NT_meas, cov_rotvec_T)
         q, w, P, qc, p = self._sanitized(state)
         r = rotvec(qmul(conj(q), z))
         dx, Pn, acc, rej, nis = self._gated_update(P, r, None, cov, valid)
@@ -160,18 +156,8 @@ class MEKF(AttitudeFilter):
         ``R(dq_H) = R_HT(now) R_HT(prev)ᵀ``, its rotation-vector covariance in H, and the Hill
         frame at both epochs; NaN rows / ``None`` are missing epochs (only re-clone).
         """
-        self._check_state(state)
-        if not state.has_clone:
-            raise ValueError("state: no clone; call clone(state) at the earlier epoch first")
-        if cov_side not in ("left", "right"):
-            raise ValueError(f"cov_side: expected 'left' or 'right', got {cov_side!r}")
+        dqN, covN, valid = self._increment_inputs(state, dq_H, cov_rotvec_H, R_NH_prev, R_NH_now, cov_side)
         M = state.n_trials
-        dqH, valid = self._measurement_rows(dq_H, M, 4, "dq_H")
-        cov, cov_ok = self._cov_rows(cov_rotvec_H, M, "cov_rotvec_H")
-        valid &= cov_ok & ~state.failed
-        Rp = self._frame_rows(R_NH_prev, M, "R_NH_prev")
-        Rn = self._frame_rows(R_NH_now, M, "R_NH_now")
-        dqN, covN = self._increment_in_N(dqH, cov, Rp, Rn, cov_side)
         q, w, P, qc, p = self._sanitized(state)
         dq_hat = qmul(q, conj(qc))
         r = rotvec(qmul(dqN, conj(dq_hat)))
