@@ -8,7 +8,10 @@ primaries are merged (pairs claimed inconsistently by two primaries are dropped)
 weights are updated by 003 eq (9) normalised per FLAG P003-5, and near-duplicate correspondences
 are removed by the per-epoch AND test of FLAG P003-6, keeping the one with the smaller residual.
 
-Descriptor matching uses OpenCV's brute-force L2 matcher (``cv2.BFMatcher.knnMatch``).
+Descriptor matching uses OpenCV's brute-force L2 nearest-neighbour search (``cv2.batchDistance``,
+the kernel and selection behind ``cv2.BFMatcher.knnMatch``, returning arrays); with one
+descriptor per track a single search serves all views.  The consistency check, the merge and the
+bookkeeping are numpy index-array operations over all tracks at once.
 """
 
 from __future__ import annotations
@@ -68,31 +71,92 @@ def camera_weights_from_counts(n_per_primary) -> np.ndarray:
     return (1.0 + N) / (N.shape[-1] + np.sum(N, -1, keepdims=True))
 
 
-def _ratio_matches(d_prev: np.ndarray, d_next: np.ndarray, ratio: float) -> np.ndarray:
-    """For each row of ``d_prev`` the index of its nearest neighbour in ``d_next`` passing the
-    ratio test ``d1 < ratio · d2`` (−1 otherwise), by ``cv2.BFMatcher`` (L2)."""
+_K_SHARED = 8  # neighbours kept per track when one descriptor list serves all views
+
+
+def _knn(d_prev: np.ndarray, d_next: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest rows of ``d_next`` for each row of ``d_prev`` (L2): distances (float32)
+    and indices (−1 past the last neighbour), nearest first, equal distances in index order.
+
+    ``cv2.batchDistance`` with ``K=k``: the kernel and the selection of ``cv2.BFMatcher.knnMatch``,
+    returned as arrays instead of one Python ``DMatch`` object per query.
+    """
     import cv2
 
-    out = np.full(len(d_prev), -1, dtype=int)
+    dist, nidx = cv2.batchDistance(np.ascontiguousarray(d_prev, np.float32),
+                                   np.ascontiguousarray(d_next, np.float32), cv2.CV_32F,
+                                   normType=cv2.NORM_L2, K=int(k))
+    return dist, nidx
+
+
+def _ratio_test(dist: np.ndarray, nidx: np.ndarray, ratio: float) -> np.ndarray:
+    """Nearest index where both neighbours exist and ``d1 < ratio · d2`` (in double precision, as
+    on ``DMatch`` distances), else −1."""
+    d = dist.astype(np.float64)
+    good = (nidx[:, 0] >= 0) & (nidx[:, 1] >= 0) & (d[:, 0] < ratio * d[:, 1])
+    return np.where(good, nidx[:, 0], -1).astype(int)
+
+
+def _ratio_matches(d_prev: np.ndarray, d_next: np.ndarray, ratio: float) -> np.ndarray:
+    """For each row of ``d_prev`` the index of its nearest neighbour in ``d_next`` passing the
+    ratio test ``d1 < ratio · d2`` (−1 otherwise); same result as ``cv2.BFMatcher.knnMatch(k=2)``."""
     if len(d_prev) == 0 or len(d_next) < 2:
-        return out
-    bf = cv2.BFMatcher(cv2.NORM_L2)
-    knn = bf.knnMatch(np.ascontiguousarray(d_prev, np.float32),
-                      np.ascontiguousarray(d_next, np.float32), k=2)
-    for m in knn:
-        if len(m) == 2 and m[0].distance < ratio * m[1].distance:
-            out[m[0].queryIdx] = m[0].trainIdx
-    return out
+        return np.full(len(d_prev), -1, dtype=int)
+    return _ratio_test(*_knn(d_prev, d_next, 2), ratio)
+
+
+def _shared_ratio_matches(d_prev, d_next, vp, vn, ratio: float) -> np.ndarray:
+    """Per-view ratio-test matches ``(M, n)`` (−1: none) with one descriptor per track.
+
+    One ``_K_SHARED``-nearest search over all tracks seen at each epoch; in view v the two
+    nearest candidates seen in v are the first two of them in that list (the list is the start of
+    the stable distance order, so ties keep the order of a search over the view's tracks alone).
+    Queries whose full list holds fewer than two of the view's candidates are searched again
+    among those candidates only.  Same result as :func:`_ratio_matches` per view.
+    """
+    M, n = vp.shape
+    match = np.full((M, n), -1, dtype=int)
+    rows = np.nonzero(vp.any(axis=1))[0]
+    cols = np.nonzero(vn.any(axis=1))[0]
+    if rows.size == 0 or cols.size < 2:
+        return match
+    k = min(_K_SHARED, cols.size)
+    dist, nidx = _knn(d_prev[rows], d_next[cols], k)
+    valid = nidx >= 0
+    cand = np.where(valid, cols[np.maximum(nidx, 0)], -1)  # track indices at t + Δt
+    full = valid[:, -1]
+    r = np.arange(rows.size)
+    for v in range(n):
+        q = vp[rows, v]
+        inv = valid & vn[np.maximum(cand, 0), v]
+        cs = np.cumsum(inv, axis=1)
+        has2 = cs[:, -1] >= 2
+        p1 = np.argmax(cs >= 1, axis=1)
+        p2 = np.argmax(cs >= 2, axis=1)
+        d2 = np.stack([dist[r, p1], dist[r, p2]], axis=1)
+        i2 = np.stack([np.where(cs[:, -1] >= 1, cand[r, p1], -1), np.where(has2, cand[r, p2], -1)],
+                      axis=1)
+        m = _ratio_test(d2, i2, ratio)
+        again = q & ~has2 & full  # the view's two nearest may lie beyond the list
+        use = q & ~again
+        match[rows[use], v] = m[use]
+        b = np.nonzero(vn[:, v])[0]
+        if np.any(again) and b.size >= 2:
+            a = rows[again]
+            mm = _ratio_matches(d_prev[a], d_next[b], ratio)
+            match[a, v] = np.where(mm >= 0, b[np.maximum(mm, 0)], -1)
+    return match
 
 
 def _check_views_desc(views, desc, name):
+    """Views ``(M, n)`` and descriptors as given: ``(M, D)`` (one per track) or ``(M, n, D)``."""
     v = np.asarray(views, dtype=bool)
     if v.ndim != 2:
         raise ValueError(f"views_{name}: expected shape (n_tracks, n_views), got {v.shape}")
-    d = as_float(desc, f"descriptors_{name}")
-    if d.ndim == 2:
-        d = np.broadcast_to(d[:, None, :], (d.shape[0], v.shape[1], d.shape[1]))
-    if d.ndim != 3 or d.shape[:2] != v.shape:
+    d = np.asarray(desc)
+    if d.dtype != np.float32:
+        d = as_float(desc, f"descriptors_{name}")
+    if not ((d.ndim == 2 and d.shape[0] == v.shape[0]) or (d.ndim == 3 and d.shape[:2] == v.shape)):
         raise ValueError(f"descriptors_{name}: expected (n_tracks, D) or (n_tracks, n_views, D) "
                          f"matching views {v.shape}, got {np.shape(desc)}")
     return v, d
@@ -138,36 +202,57 @@ def associate(views_prev, descriptors_prev, views_next, descriptors_next, *, X_p
     if not 0.0 < float(ratio) <= 1.0:
         raise ValueError(f"ratio: must lie in (0, 1], got {ratio!r}")
     eps = float(check_positive(duplicate_distance_m, "duplicate_distance_m"))
+    if dp.ndim != dn.ndim:  # one per track on one side, per view on the other
+        if dp.ndim == 2:
+            dp = np.broadcast_to(dp[:, None, :], (dp.shape[0], n, dp.shape[1]))
+        else:
+            dn = np.broadcast_to(dn[:, None, :], (dn.shape[0], n, dn.shape[1]))
 
     # per-view matches (candidates: the tracks seen in that view at each epoch)
-    match = np.full((vp.shape[0], n), -1, dtype=int)
-    for v in range(n):
-        a = np.nonzero(vp[:, v])[0]
-        b = np.nonzero(vn[:, v])[0]
-        m = _ratio_matches(dp[a, v], dn[b, v], float(ratio))
-        hit = m >= 0
-        match[a[hit], v] = b[m[hit]]
+    M = vp.shape[0]
+    if dp.ndim == 2:
+        match = _shared_ratio_matches(dp, dn, vp, vn, float(ratio))
+    else:
+        match = np.full((M, n), -1, dtype=int)
+        for v in range(n):
+            a = np.nonzero(vp[:, v])[0]
+            b = np.nonzero(vn[:, v])[0]
+            m = _ratio_matches(dp[a, v], dn[b, v], float(ratio))
+            hit = m >= 0
+            match[a[hit], v] = b[m[hit]]
 
+    # primary c keeps i ↔ j = match[i, c] if every auxiliary view seeing the track at both
+    # epochs matches i to the same j
     counts = np.zeros(n, dtype=int)
-    claims: dict[int, set[int]] = {}
+    cl_c, cl_i, cl_j = [], [], []
     for c in range(n):
-        rows = np.nonzero(match[:, c] >= 0)[0]
-        for i in rows:
-            j = match[i, c]
-            aux = vp[i] & vn[j]
-            aux[c] = False
-            if np.all(match[i, aux] == j):
-                counts[c] += 1
-                claims.setdefault(int(i), set()).add(int(j))
-    # merge: drop tracks claimed with different partners, and partners claimed twice
-    pairs = [(i, next(iter(js))) for i, js in claims.items() if len(js) == 1]
-    n_conflicts = len(claims) - len(pairs)
-    partners, cnt = np.unique(np.array([j for _, j in pairs], dtype=int), return_counts=True)
-    shared = set(partners[cnt > 1].tolist())
-    kept = [(i, j) for i, j in pairs if j not in shared]
-    n_conflicts += len(pairs) - len(kept)
-    ip = np.array([i for i, _ in kept], dtype=int)
-    jn = np.array([j for _, j in kept], dtype=int)
+        i = np.nonzero(match[:, c] >= 0)[0]
+        j = match[i, c]
+        aux = vp[i] & vn[j]
+        aux[:, c] = False
+        ok_c = np.all(~aux | (match[i] == j[:, None]), axis=1)
+        counts[c] = int(np.count_nonzero(ok_c))
+        cl_c.append(np.full(counts[c], c))
+        cl_i.append(i[ok_c])
+        cl_j.append(j[ok_c])
+    ci, cj, cc = np.concatenate(cl_i), np.concatenate(cl_j), np.concatenate(cl_c)
+    # merge: drop tracks claimed with different partners, and partners claimed twice; the pairs
+    # are kept in order of first claim (primary, then track index)
+    first_c = np.full(M, n)
+    np.minimum.at(first_c, ci, cc)
+    j_min = np.full(M, np.iinfo(int).max)
+    j_max = np.full(M, -1)
+    np.minimum.at(j_min, ci, cj)
+    np.maximum.at(j_max, ci, cj)
+    claimed = np.nonzero(j_max >= 0)[0]
+    claimed = claimed[np.lexsort((claimed, first_c[claimed]))]
+    single = j_min[claimed] == j_max[claimed]
+    n_conflicts = int(claimed.size - np.count_nonzero(single))
+    ip = claimed[single]
+    jn = j_min[ip]
+    shared = np.bincount(jn, minlength=1)[jn] > 1
+    n_conflicts += int(np.count_nonzero(shared))
+    ip, jn = ip[~shared], jn[~shared]
 
     n_dup = 0
     if X_prev is not None and X_next is not None and ip.size > 1:
