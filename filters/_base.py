@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.stats import chi2
@@ -30,7 +32,7 @@ def _eye(n: int) -> np.ndarray:
     return _EYES[n]
 
 
-class AttitudeFilter:
+class AttitudeFilter(ABC):
     """Common base of :class:`~filters.AttitudeEKF` and :class:`~filters.MEKF` (not used directly).
 
     Subclasses define the covariance coordinates (``state_layout``), the propagation Jacobian and
@@ -387,8 +389,9 @@ class AttitudeFilter:
         e = np.concatenate(parts, -1)
         return np.where(state.failed[:, None], np.nan, e)
 
-    def tangent_covariance(self, state: FilterState) -> np.ndarray:  # pragma: no cover - abstract
-        raise NotImplementedError
+    @abstractmethod
+    def tangent_covariance(self, state: FilterState) -> np.ndarray:
+        """Covariance of the tangent error ``[a, δω, (δp)]`` of each trial, ``(M, n, n)``."""
 
     def nees(self, state: FilterState, q_NT_true: ArrayLike, omega_TN_T_true: ArrayLike,
              inertia_ratios_true: ArrayLike | None = None) -> np.ndarray:
