@@ -99,12 +99,17 @@ def drift_free_slot_states(r_slot_H: ArrayLike, n: float) -> np.ndarray:
     return np.concatenate([r, v], -1)
 
 
+def _two_impulse_costs(x0: np.ndarray, slots_H: ArrayLike, tf_s: float, n: float) -> np.ndarray:
+    """(spacecraft, slot) matrix of two-impulse CW Δv; 1e9 where no unique transfer exists."""
+    slots = np.asarray(slots_H, dtype=float)
+    tr = two_impulse_transfer(x0[:, None, :], slots[None, :, :], tf_s, n)
+    return np.where(tr.ok, tr.total_dv_m_s, 1e9)
+
+
 def assign_slots(x0_H: ArrayLike, slots_H: ArrayLike, tf_s: float, n: float) -> tuple[np.ndarray, np.ndarray]:
     """Hungarian assignment of spacecraft to slots on the two-impulse Δv; returns (assignment, cost matrix)."""
     x0 = np.asarray(x0_H, dtype=float)
-    slots = np.asarray(slots_H, dtype=float)
-    tr = two_impulse_transfer(x0[:, None, :], slots[None, :, :], tf_s, n)
-    cost = np.where(tr.ok, tr.total_dv_m_s, 1e9)
+    cost = _two_impulse_costs(x0, slots_H, tf_s, n)
     rows, cols = linear_sum_assignment(cost)
     assignment = np.empty(x0.shape[0], dtype=int)
     assignment[rows] = cols
@@ -120,9 +125,7 @@ def choose_movers(x0_H: ArrayLike, slots_H: ArrayLike, tf_s: float, n: float) ->
     slots = np.asarray(slots_H, dtype=float)
     if x0.shape[0] < slots.shape[0]:
         raise ValueError(f"x0_H: {x0.shape[0]} candidates cannot fill {slots.shape[0]} slots")
-    tr = two_impulse_transfer(x0[:, None, :], slots[None, :, :], tf_s, n)
-    cost = np.where(tr.ok, tr.total_dv_m_s, 1e9)
-    rows, cols = linear_sum_assignment(cost)
+    rows, cols = linear_sum_assignment(_two_impulse_costs(x0, slots, tf_s, n))
     order = np.argsort(rows)
     return rows[order], cols[order]
 

@@ -243,6 +243,22 @@ def _signed_angle(a: np.ndarray, b: np.ndarray, axis_hat: np.ndarray) -> np.ndar
     return np.mod(np.arctan2(s, c), _TWO_PI)
 
 
+def _elliptic_state(r_N: ArrayLike, v_N: ArrayLike, mu_m3_s2: float, r_name: str, v_name: str):
+    """Checked, broadcast ``(r, v, μ, |r|, |v|², specific energy)`` of an elliptic state; errors name the arguments."""
+    r = check_last_axis(r_N, 3, name=r_name)
+    v = check_last_axis(v_N, 3, name=v_name)
+    r, v = np.broadcast_arrays(r, v)
+    mu = float(check_positive(mu_m3_s2, name="mu_m3_s2"))
+    r_norm = np.linalg.norm(r, axis=-1)
+    if np.any(r_norm == 0.0):
+        raise ValueError(f"{r_name}: position of zero norm")
+    v2 = np.einsum("...i,...i->...", v, v)
+    energy = 0.5 * v2 - mu / r_norm
+    if np.any(energy >= 0.0):
+        raise ValueError(f"{v_name}: state is not elliptic (specific energy {energy[energy >= 0].ravel()[0]!r} J/kg >= 0)")
+    return r, v, mu, r_norm, v2, energy
+
+
 def elements_from_state(r_N: ArrayLike, v_N: ArrayLike, *, mu_m3_s2: float = MU_EARTH_M3_S2,
                         tol: float = 1e-11) -> OrbitalElements:
     """Classical elements from an inertial state (Vallado Algorithm 9, RV2COE), vectorised.
@@ -267,17 +283,7 @@ def elements_from_state(r_N: ArrayLike, v_N: ArrayLike, *, mu_m3_s2: float = MU_
     ValueError
         If a state is not elliptic (specific energy ≥ 0) or is rectilinear (r × v = 0).
     """
-    r = check_last_axis(r_N, 3, name="r_N")
-    v = check_last_axis(v_N, 3, name="v_N")
-    r, v = np.broadcast_arrays(r, v)
-    mu = float(check_positive(mu_m3_s2, name="mu_m3_s2"))
-    r_norm = np.linalg.norm(r, axis=-1)
-    if np.any(r_norm == 0.0):
-        raise ValueError("r_N: position of zero norm")
-    v2 = np.einsum("...i,...i->...", v, v)
-    energy = 0.5 * v2 - mu / r_norm
-    if np.any(energy >= 0.0):
-        raise ValueError(f"v_N: state is not elliptic (specific energy {energy[energy >= 0].ravel()[0]!r} J/kg >= 0)")
+    r, v, mu, r_norm, v2, energy = _elliptic_state(r_N, v_N, mu_m3_s2, "r_N", "v_N")
     h = np.cross(r, v)
     h_norm = np.linalg.norm(h, axis=-1)
     if np.any(h_norm <= 1e-12 * r_norm * np.sqrt(v2)):
@@ -332,18 +338,8 @@ def propagate_kepler(r0_N: ArrayLike, v0_N: ArrayLike, t_s: ArrayLike, *,
     ``r(t) = f r₀ + g v₀``, ``v(t) = ḟ r₀ + ġ v₀``.  The Newton iteration converges to 1e-15 rad,
     i.e. ~1e-9 m along-track for a 6700 km orbit.
     """
-    r0 = check_last_axis(r0_N, 3, name="r0_N")
-    v0 = check_last_axis(v0_N, 3, name="v0_N")
+    r0, v0, mu, r0n, v2, energy = _elliptic_state(r0_N, v0_N, mu_m3_s2, "r0_N", "v0_N")
     t = check_times(t_s)
-    r0, v0 = np.broadcast_arrays(r0, v0)
-    mu = float(check_positive(mu_m3_s2, name="mu_m3_s2"))
-    r0n = np.linalg.norm(r0, axis=-1)
-    if np.any(r0n == 0.0):
-        raise ValueError("r0_N: position of zero norm")
-    v2 = np.einsum("...i,...i->...", v0, v0)
-    energy = 0.5 * v2 - mu / r0n
-    if np.any(energy >= 0.0):
-        raise ValueError(f"v0_N: state is not elliptic (specific energy {energy[energy >= 0].ravel()[0]!r} J/kg >= 0)")
     a = -mu / (2.0 * energy)
     n = np.sqrt(mu / a**3)
     sigma0 = np.einsum("...i,...i->...", r0, v0) / np.sqrt(mu)
