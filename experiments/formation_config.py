@@ -23,6 +23,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from experiments.sweep import SweepSpec
+from vision.target import BUNDLED_MESHES, bundled_mesh_path
 
 __all__ = [
     "Config",
@@ -62,8 +63,9 @@ def _vec(n: int, *, positive: bool = False):
 class TargetConfig(_Model):
     """The tumbling target: model, inertia, initial attitude and rate."""
 
-    model: str = Field("fy1", description='"fy1" (procedural FY-1-like) or a mesh file (OBJ, STL, PLY, ...)')
-    mesh_unit_m: float = Field(1.0, gt=0, description="metres per mesh-file unit")
+    model: str = Field("fy1", description='"fy1" (procedural FY-1-like), a bundled mesh ("topex", '
+                       '"hubble") or a mesh file (OBJ, STL, PLY, ...)')
+    mesh_unit_m: float = Field(1.0, gt=0, description="metres per mesh-file unit (bundled mesh: its own unit)")
     texture_seed: int = Field(0, ge=0, description="seed of the procedural textures and surface features")
     inertia_kg_m2: list[float] = Field([1000.0, 800.0, 600.0], description="principal moments (SEEDS_SPEC §3.7)")
     q_NT0: list[float] = Field([1.0, 0.0, 0.0, 0.0], description="initial attitude (003 eq 34), [w, x, y, z]")
@@ -89,10 +91,17 @@ class TargetConfig(_Model):
             raise ValueError(f"principal moments {v} violate the triangle inequality (not a rigid body)")
         return v
 
+    @model_validator(mode="before")
+    @classmethod
+    def _bundled_unit(cls, data: object) -> object:
+        if isinstance(data, dict) and data.get("model") in BUNDLED_MESHES and "mesh_unit_m" not in data:
+            return {**data, "mesh_unit_m": BUNDLED_MESHES[data["model"]].unit_m}
+        return data
+
     @field_validator("model")
     @classmethod
     def _model_exists(cls, v: str) -> str:
-        if v == "fy1":
+        if v == "fy1" or v in BUNDLED_MESHES:
             return v
         p = Path(v)
         if not (p.is_file() or (REPO_ROOT / p).is_file()):
@@ -102,6 +111,8 @@ class TargetConfig(_Model):
     def mesh_path(self) -> Path | None:
         if self.model == "fy1":
             return None
+        if self.model in BUNDLED_MESHES:
+            return bundled_mesh_path(self.model)
         p = Path(self.model)
         return p if p.is_file() else REPO_ROOT / p
 

@@ -433,7 +433,7 @@ def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence
     keypoints : sequence of Keypoints
         Keypoints of the n views.
     camera : PinholeCamera or sequence of n PinholeCamera
-        Intrinsics (one shared camera or one per view; same image size).
+        Intrinsics (one camera for all views or one per view; same image size).
     T_CW : array_like, shape (n, 4, 4)
         Camera poses.
     ratio, epipolar_tol_px : float

@@ -1,17 +1,14 @@
 """Shared fixtures of the vision tests: targets and the two-camera 50 m set-up of issue 5."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from attitude.quaternion import quat_from_axis_angle, quat_from_matrix, quat_multiply
 from vision.camera import PinholeCamera, look_at
-from vision.target import fy1_target, load_mesh
+from vision.target import bundled_mesh_path, fy1_target, load_mesh
 
-MESHES = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "meshes"
-TOPEX = MESHES / "topex_poseidon.obj"
-HUBBLE = MESHES / "hubble_model_kit.obj"
+TOPEX = bundled_mesh_path("topex")
+HUBBLE = bundled_mesh_path("hubble")
 INCH_M = 0.0254
 
 # Issue 5 "done when" set-up: 1024 x 1024 px, 20 deg field of view, 50 m, optical axes 10 deg apart,
@@ -49,8 +46,6 @@ def fy1():
 
 @pytest.fixture(scope="session")
 def topex():
-    if not TOPEX.is_file():
-        pytest.fail(f"test data missing: {TOPEX}")
     return load_mesh(TOPEX, unit_m=INCH_M, seed=0)
 
 

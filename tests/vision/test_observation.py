@@ -1,4 +1,4 @@
-"""Tests of the Observation contract shared by the rendered and geometric modes."""
+"""Tests of the Observation contract common to the rendered and geometric modes."""
 
 import numpy as np
 import pytest

@@ -13,6 +13,8 @@ from vision.target import (
     TEXTURE_KINDS,
     Material,
     Target,
+    available_meshes,
+    bundled_mesh_path,
     load_mesh,
     procedural_texture,
 )
@@ -147,3 +149,27 @@ def test_material_and_target_validate_inputs():
     with pytest.raises(ValueError, match="triangles"):
         Target("t", np.zeros((3, 3)), np.array([[0, 1, 5]]), np.zeros((1, 3, 2)), np.zeros(1, int),
                (Material("x", "mli", 0.5),), np.zeros((16, 16)), 0.01)
+
+
+def test_bundled_topex_by_name_is_the_inch_scaled_file():
+    assert available_meshes() == ("hubble", "topex")
+    by_name = load_mesh("topex", seed=0)
+    by_path = load_mesh(bundled_mesh_path("topex"), unit_m=INCH_M, seed=0)
+    np.testing.assert_array_equal(by_name.vertices_T, by_path.vertices_T)
+    np.testing.assert_array_equal(by_name.texture, by_path.texture)
+    assert by_name.n_triangles == 21158
+
+
+def test_bundled_hubble_defaults_to_millimetres():
+    t = load_mesh("hubble", center="none")
+    np.testing.assert_allclose(np.ptp(t.vertices_T, axis=0), np.array([67.166, 91.901, 39.811]) * 1e-3,
+                               atol=1e-8)
+
+
+def test_unknown_mesh_names_are_refused_in_one_line_naming_the_known_ones():
+    with pytest.raises(ValueError, match=r"^path: 'venus' is neither a bundled mesh \('hubble', 'topex'\)"):
+        load_mesh("venus")
+    with pytest.raises(ValueError, match=r"^name: unknown bundled mesh 'venus'; known: \('hubble', 'topex'\)$"):
+        bundled_mesh_path("venus")
+    with pytest.raises(ValueError, match="unit_m: required"):
+        load_mesh(HUBBLE)
