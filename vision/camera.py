@@ -15,6 +15,7 @@ All functions broadcast over leading batch axes: points ``(..., 3)``, poses ``(.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,6 +25,7 @@ from numpy.typing import ArrayLike
 __all__ = [
     "PinholeCamera",
     "camera_center",
+    "cameras_per_view",
     "check_pose",
     "invert_pose",
     "look_at",
@@ -398,3 +400,30 @@ class PinholeCamera:
         else:
             raise ValueError(f"camera.model must be PINHOLE or SIMPLE_PINHOLE, got {name!r}")
         return cls(int(camera.width), int(camera.height), fx, fy, cx - 0.5, cy - 0.5)
+
+
+def cameras_per_view(camera: PinholeCamera | Sequence[PinholeCamera], n: int) -> list[PinholeCamera]:
+    """One :class:`PinholeCamera` per view: ``camera`` repeated n times, or the n given cameras.
+
+    Parameters
+    ----------
+    camera : PinholeCamera or sequence of n PinholeCamera
+        Intrinsics common to all views, or one per view.
+    n : int
+        Number of views.
+
+    Returns
+    -------
+    list of PinholeCamera, length n
+
+    Raises
+    ------
+    ValueError
+        ``camera`` is not a camera or a sequence of n of them, or the views differ in image size.
+    """
+    cams = [camera] * n if isinstance(camera, PinholeCamera) else list(camera)
+    if len(cams) != n or not all(isinstance(c, PinholeCamera) for c in cams):
+        raise ValueError(f"camera must be a PinholeCamera or a sequence of {n} of them")
+    if len({c.image_size for c in cams}) != 1:
+        raise ValueError("camera: all views must have the same image size")
+    return cams

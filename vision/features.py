@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from vision.camera import PinholeCamera, check_pose
+from vision.camera import PinholeCamera, cameras_per_view, check_pose
 from vision.observation import STATUS_OK, STATUS_TOO_FEW_MATCHES, Observation
 
 __all__ = [
@@ -409,15 +409,6 @@ def tracks_from_matches(n_keypoints: Sequence[int], pair_matches: dict[tuple[int
     return tracks[ok]
 
 
-def _as_cameras(camera, n: int) -> list[PinholeCamera]:
-    cams = [camera] * n if isinstance(camera, PinholeCamera) else list(camera)
-    if len(cams) != n or not all(isinstance(c, PinholeCamera) for c in cams):
-        raise ValueError(f"camera must be a PinholeCamera or a sequence of {n} of them")
-    if len({c.image_size for c in cams}) != 1:
-        raise ValueError("camera: all views must have the same image size")
-    return cams
-
-
 def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence[PinholeCamera],
                 T_CW: ArrayLike, *, ratio: float = 0.6, epipolar_tol_px: float = 1.5,
                 min_views: int = 2, pixel_sigma_px: float = 0.5, guided: bool = False,
@@ -457,7 +448,7 @@ def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence
     T = check_pose(T_CW, name="T_CW")
     if T.shape != (n, 4, 4):
         raise ValueError(f"T_CW must have shape ({n}, 4, 4), got {T.shape}")
-    cams = _as_cameras(camera, n)
+    cams = cameras_per_view(camera, n)
     if n < 2:
         raise ValueError(f"keypoints: need at least 2 views, got {n}")
     if not 2 <= min_views <= n:

@@ -45,7 +45,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from attitude.quaternion import check_quat, matrix_from_quat
-from vision.camera import PinholeCamera, check_pose
+from vision.camera import PinholeCamera, cameras_per_view, check_pose
 from vision.observation import (
     STATUS_EARTH_SHADOW,
     STATUS_OK,
@@ -132,15 +132,6 @@ def surface_features(target: Target, *, n_features: int = 1500, descriptor_dim: 
 
 def _default_features(target: Target) -> SurfaceFeatures:
     return target._cached("geometric_features", lambda: surface_features(target))
-
-
-def _cameras(camera, n: int) -> list[PinholeCamera]:
-    cams = [camera] * n if isinstance(camera, PinholeCamera) else list(camera)
-    if len(cams) != n or not all(isinstance(c, PinholeCamera) for c in cams):
-        raise ValueError(f"camera must be a PinholeCamera or a sequence of {n} of them")
-    if len({c.image_size for c in cams}) != 1:
-        raise ValueError("camera: all views must have the same image size")
-    return cams
 
 
 def observe(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, target: Target,
@@ -241,7 +232,7 @@ def observe_epochs(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayL
         raise ValueError(f"sun_visible_fraction must be in [0, 1], got {sun_visible_fraction!r}")
     if not isinstance(target, Target):
         raise ValueError(f"target must be a Target, got {type(target).__name__}")
-    cams = _cameras(camera, n)
+    cams = cameras_per_view(camera, n)
     if not (np.isfinite(pixel_sigma_px) and pixel_sigma_px >= 0):
         raise ValueError(f"pixel_sigma_px must be >= 0, got {pixel_sigma_px!r}")
     if not 0.0 <= false_match_fraction < 1.0:

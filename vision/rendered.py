@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from attitude.quaternion import matrix_from_quat
-from vision.camera import PinholeCamera, check_pose
-from vision.features import _as_cameras, detect, match_views
+from vision.camera import PinholeCamera, cameras_per_view, check_pose
+from vision.features import detect, match_views
 from vision.observation import STATUS_OK, STATUS_OUTSIDE_FOV, Observation
 from vision.render import (
     STATUS_BEHIND_CAMERA,
@@ -42,7 +42,7 @@ def render_views(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLik
     T = check_pose(T_CW, name="T_CW")
     if T.ndim != 3:
         raise ValueError(f"T_CW must have shape (n, 4, 4), got {T.shape}")
-    cams = _as_cameras(camera, len(T))
+    cams = cameras_per_view(camera, len(T))
     rngs = np.random.default_rng(rng).spawn(len(T))
     return [render(c, t, target, q_HT, sun_H, rng=r, **render_options) for c, t, r in zip(cams, T, rngs, strict=True)]
 
