@@ -12,6 +12,12 @@ import numpy as np
 __all__: list[str] = []
 
 
+def scalar_or_array(a: np.ndarray) -> object:
+    """``a`` as a Python scalar when it is 0-d (an unbatched result field), else unchanged."""
+    a = np.asarray(a)
+    return a.item() if a.ndim == 0 else a
+
+
 # --------------------------------------------------------------------------- input checks
 def as_float(a, name: str) -> np.ndarray:
     try:

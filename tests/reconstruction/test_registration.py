@@ -323,12 +323,12 @@ def test_compiled_kabsch_matches_the_numpy_reference_with_weights_nan_rows_and_d
         weighted):
     """The Numba kernel behind ``fit_rigid`` against the NumPy path it replaced, problem by
     problem: same failure codes, usable-point counts and row masks; R, t, RMS to rounding."""
-    from reconstruction.registration import _kabsch_flat, _kabsch_flat_numpy
+    from reconstruction.registration.kabsch import kabsch_flat, kabsch_flat_numpy
 
     P, Q, w = _reference_batch(np.random.default_rng(11), 600, 40)
     w = w if weighted else None
-    R, t, code, npts, rms, rows = _kabsch_flat(P, Q, w)
-    R0, t0, code0, npts0, rms0, rows0 = _kabsch_flat_numpy(P, Q, w)
+    R, t, code, npts, rms, rows = kabsch_flat(P, Q, w)
+    R0, t0, code0, npts0, rms0, rows0 = kabsch_flat_numpy(P, Q, w)
     np.testing.assert_array_equal(code, code0)
     assert list(code[:4]) == [1, 2, 3, 1 if weighted else 0] and np.all(code[4:] == 0)
     np.testing.assert_array_equal(npts, npts0)
@@ -358,8 +358,8 @@ def test_ill_determined_quaternions_fall_back_to_the_svd_with_an_optimal_fit():
     """Q = −P for a cloud with two equal principal moments: two 180° rotations fit equally well,
     the quaternion eigenvector is ill-determined for some orientations and those problems go
     to the SVD reference; every fit is a proper rotation with the optimal (equal) residual."""
-    from reconstruction import _kernels
-    from reconstruction.registration import _kabsch_flat_numpy, _readonly_c
+    from reconstruction.registration import _kabsch_kernel
+    from reconstruction.registration.kabsch import kabsch_flat_numpy, readonly_c
 
     base = np.array([[2.0, 0, 0], [-2, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
     Rr = Rotation.random(2000, random_state=13).as_matrix()
@@ -368,13 +368,13 @@ def test_ill_determined_quaternions_fall_back_to_the_svd_with_an_optimal_fit():
     flags = np.empty(2000, np.uint8)
     out = (np.empty((2000, 3, 3)), np.empty((2000, 3)), np.empty(2000), np.empty(2000, np.int8),
            np.empty(2000, np.int64), flags)
-    _kernels.kabsch_batch(_readonly_c(P.reshape(2000, -1)), _readonly_c(Q.reshape(2000, -1)),
-                          _readonly_c(np.zeros((1, 6))), False, *out)
-    assert np.count_nonzero(flags & _kernels.FLAG_SVD) > 0
+    _kabsch_kernel.kabsch_batch(readonly_c(P.reshape(2000, -1)), readonly_c(Q.reshape(2000, -1)),
+                                readonly_c(np.zeros((1, 6))), False, *out)
+    assert np.count_nonzero(flags & _kabsch_kernel.FLAG_SVD) > 0
     fit = fit_rigid(P, Q)
     assert np.all(fit.ok)
     np.testing.assert_allclose(np.linalg.det(fit.R), 1.0, atol=1e-12)
-    _, _, _, _, rms0, _ = _kabsch_flat_numpy(P, Q, None)
+    _, _, _, _, rms0, _ = kabsch_flat_numpy(P, Q, None)
     np.testing.assert_allclose(fit.rms_m, rms0, rtol=1e-9)
     # the optimum, a 180° turn about a minor axis: R p + p = 2 p_minor, Σ = 2 · 2² over 6 points
     np.testing.assert_allclose(fit.rms_m, np.sqrt(8 / 6), rtol=1e-9)
@@ -387,3 +387,25 @@ def test_infinite_coordinates_raise_value_error():
         fit_rigid(P, P)
     with pytest.raises(ValueError, match="infinite"):
         fit_rigid(P, P, np.ones(10))
+
+
+def test_qcp_kernel_matches_the_svd_rotation_for_random_and_reflected_correlations():
+    """The one Horn/QCP kernel against an independent oracle, the SVD solution
+    ``U diag(1, 1, det UVᵀ) Vᵀ`` of 000 eq (37): random correlations, reflected ones (det S < 0),
+    rank 2; rank ≤ 1 is flagged collinear and a non-finite S gives NaN."""
+    from reconstruction.registration.qcp import rotations_from_correlations
+
+    rng = np.random.default_rng(21)
+    S = rng.standard_normal((500, 3, 3))
+    S[100:200] *= np.array([1.0, 1.0, -1.0])  # a column flipped: det S changes sign
+    S[200:250, :, 2] = S[200:250, :, :2] @ np.array([0.3, -0.7])  # rank 2
+    S[250] = np.outer([1.0, 2.0, -1.0], [0.5, 0.0, 1.0])  # rank 1
+    S[251, 1, 2] = np.nan
+    G = np.sqrt(np.einsum("bij,bij->b", S, S)) * 3.0  # any upper bound of λ_max is valid
+    R, collinear = rotations_from_correlations(S, G)
+    oracle = proper_rotation_from_svd(np.swapaxes(S, -1, -2))
+    full = np.r_[0:250, 252:500]
+    np.testing.assert_allclose(R[full], oracle[full], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(np.linalg.det(R[full]), 1.0, atol=1e-12)
+    assert not np.any(collinear[full]) and collinear[250] and collinear[251]
+    assert np.all(np.isnan(R[251]))

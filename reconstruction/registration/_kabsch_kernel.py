@@ -1,11 +1,12 @@
-"""Compiled (Numba) kernel of the batched Kabsch fit of :mod:`reconstruction.registration`.
+"""Compiled (Numba) moment pass of the batched Kabsch fit of :mod:`reconstruction.registration`.
 
 :func:`kabsch_batch` reads each problem's points once, for its weighted raw moments (a loop
 that vectorises), then treats the problems of a block of ``BLOCK`` together: centred moments,
-Horn's quaternion eigenproblem in closed form (Theobald's QCP), ``t`` and the RMS residual, in
-branch-free loops over the problems.  It reproduces, problem by problem, the NumPy reference
-``registration._kabsch_flat_numpy`` (same failure codes; NaN rows skipped the same way); the rare
-problems that the reference hands to an SVD are flagged for the caller.  Compiled on first use
+then the rotation, ``t`` and the RMS residual by the Horn/QCP kernel
+:func:`reconstruction.registration.qcp.rotations_block`, in branch-free loops over the problems.
+It reproduces, problem by problem, the NumPy reference ``kabsch._kabsch_flat_numpy`` (same
+failure codes; NaN rows skipped the same way); the rare problems that the reference hands to an
+SVD are flagged for the caller.  Compiled on first use
 (a few seconds) and cached on disk (``cache=True``).
 """
 
@@ -16,8 +17,39 @@ import math
 import numba
 import numpy as np
 
-COLLINEAR_TOL = 1e-9  # rank(S) <= 1 when ‖adj S‖ <= COLLINEAR_TOL ‖S‖²
-COINCIDENT_TOL = 1e-9  # no spread when ‖S‖ <= COINCIDENT_TOL G
+from reconstruction.registration.qcp import (
+    _COINCIDENT,
+    _COLLINEAR,
+    _FINITE,
+    _G,
+    _N_C,
+    _N_OUT,
+    _PX,
+    _PY,
+    _PZ,
+    _QX,
+    _QY,
+    _QZ,
+    _RECENTRE,
+    _RMS,
+    _SW,
+    _SXX,
+    _SXY,
+    _SXZ,
+    _SYX,
+    _SYY,
+    _SYZ,
+    _SZX,
+    _SZY,
+    _SZZ,
+    _TX,
+    _TY,
+    _TZ,
+    _WEAK,
+    BLOCK,
+    rotations_block,
+)
+
 RECENTRE_RATIO = 1e3  # second pass about the centroids when Σw(|p̄|² + |q̄|²) > RECENTRE_RATIO G
 
 FLAG_NONFINITE_ROWS = 1  # the problem has rows with NaN (skipped)
@@ -142,12 +174,6 @@ def _moments_about(P, Q, W, b, weighted, x0, y0, z0, u0, v0, s0):
 # a block vectorise): raw moments (as returned by _moments_raw), centred moments, results
 _M_G = 16
 _N_M = 17
-_SXX, _SXY, _SXZ, _SYX, _SYY, _SYZ, _SZX, _SZY, _SZZ = range(9)
-_G, _SW, _PX, _PY, _PZ, _QX, _QY, _QZ, _RECENTRE = range(9, 18)
-_N_C = 18
-_LAM, _P2, _P1, _P0, _COLLINEAR, _COINCIDENT, _FINITE, _WEAK, _TX, _TY, _TZ, _RMS = range(9, 21)
-_N_OUT = 21
-BLOCK = 64  # problems per block
 
 
 @numba.njit(**_JIT)
@@ -202,148 +228,6 @@ def _recentre(P, Q, W, b, weighted, st, k):
 
 
 @numba.njit(**_JIT)
-def _rotations(st, nb, out):
-    """Rotation maximising ``tr(R S)``, ``t`` and the RMS residual of the ``nb`` problems in
-    ``st`` (rows ``_SXX`` … ``_QZ``), into ``out`` (rows 0–8: R row-major, ``_TX`` … ``_RMS``,
-    ``_COLLINEAR``, ``_COINCIDENT``, ``_FINITE``, ``_WEAK``).
-
-    The closed form of ``registration._qcp_block`` lane by lane: Horn's quaternion, Theobald's QCP
-    (Newton on the characteristic quartic of N(S) from ``min(√3 ‖S‖, G/2)``, all problems of the
-    block until every one has converged), the eigenvector as the largest column of adj(N − λI)
-    (``_WEAK`` when it is too small to be trusted), ``rank(S) <= 1`` flagged ``_COLLINEAR``.
-    Branch-free loops over the problems, so that they vectorise.
-    """
-    for k in range(nb):
-        sxx, sxy, sxz = st[_SXX, k], st[_SXY, k], st[_SXZ, k]
-        syx, syy, syz = st[_SYX, k], st[_SYY, k], st[_SYZ, k]
-        szx, szy, szz = st[_SZX, k], st[_SZY, k], st[_SZZ, k]
-        f2 = (sxx * sxx + sxy * sxy + sxz * sxz + syx * syx + syy * syy + syz * syz
-              + szx * szx + szy * szy + szz * szz)
-        a00 = syy * szz - syz * szy
-        a01 = syz * szx - syx * szz
-        a02 = syx * szy - syy * szx
-        detS = sxx * a00 + sxy * a01 + sxz * a02
-        a10 = sxz * szy - sxy * szz
-        a11 = sxx * szz - sxz * szx
-        a12 = sxy * szx - sxx * szy
-        a20 = sxy * syz - sxz * syy
-        a21 = sxz * syx - sxx * syz
-        a22 = sxx * syy - sxy * syx
-        adjS2 = (a00 * a00 + a01 * a01 + a02 * a02 + a10 * a10 + a11 * a11 + a12 * a12
-                 + a20 * a20 + a21 * a21 + a22 * a22)
-        out[_COLLINEAR, k] = 0.0 if math.sqrt(adjS2) > COLLINEAR_TOL * f2 else 1.0
-        G = st[_G, k]
-        out[_COINCIDENT, k] = 1.0 if math.sqrt(f2) <= COINCIDENT_TOL * G else 0.0  # no spread
-        out[_FINITE, k] = 1.0 if math.isfinite(f2) and math.isfinite(G) else 0.0
-        out[_P2, k] = -2.0 * f2
-        out[_P1, k] = -8.0 * detS
-        out[_P0, k] = f2 * f2 - 4.0 * adjS2
-        lam = math.sqrt(3.0 * f2)
-        upper = 0.5 * G * (1.0 + 1e-12)
-        out[_LAM, k] = min(lam, upper) if math.isfinite(upper) else lam
-    for _ in range(60):
-        moving = 0
-        for k in range(nb):
-            lam = out[_LAM, k]
-            p2 = out[_P2, k]
-            p1 = out[_P1, k]
-            l2 = lam * lam
-            fval = (l2 + p2) * l2 + p1 * lam + out[_P0, k]
-            fder = (4.0 * l2 + 2.0 * p2) * lam + p1
-            step = fval / fder if fder > 0.0 else 0.0
-            lam = lam - step
-            out[_LAM, k] = lam
-            moving += abs(step) > 1e-15 * abs(lam)
-        if moving == 0:
-            break
-    for k in range(nb):
-        sxx, sxy, sxz = st[_SXX, k], st[_SXY, k], st[_SXZ, k]
-        syx, syy, syz = st[_SYX, k], st[_SYY, k], st[_SYZ, k]
-        szx, szy, szz = st[_SZX, k], st[_SZY, k], st[_SZZ, k]
-        lam = out[_LAM, k]
-        # N(S) − λI (Horn 1987), symmetric
-        m00 = sxx + syy + szz - lam
-        m11 = sxx - syy - szz - lam
-        m22 = syy - sxx - szz - lam
-        m33 = szz - sxx - syy - lam
-        n01 = syz - szy
-        n02 = szx - sxz
-        n03 = sxy - syx
-        n12 = sxy + syx
-        n13 = szx + sxz
-        n23 = syz + szy
-        s0 = m00 * m11 - n01 * n01
-        s1 = m00 * n12 - n01 * n02
-        s2 = m00 * n13 - n01 * n03
-        s3 = n01 * n12 - m11 * n02
-        s4 = n01 * n13 - m11 * n03
-        s5 = n02 * n13 - n12 * n03
-        k5 = m22 * m33 - n23 * n23
-        k4 = n12 * m33 - n13 * n23
-        k3 = n12 * n23 - n13 * m22
-        k2 = n02 * m33 - n03 * n23
-        k1 = n02 * n23 - n03 * m22
-        # upper triangle of adj(N − λI) (symmetric, rank 1 = c v vᵀ): its columns are ∝ v
-        b00 = m11 * k5 - n12 * k4 + n13 * k3
-        b01 = -n01 * k5 + n02 * k4 - n03 * k3
-        b02 = n13 * s5 - n23 * s4 + m33 * s3
-        b03 = -n12 * s5 + m22 * s4 - n23 * s3
-        b11 = m00 * k5 - n02 * k2 + n03 * k1
-        b12 = -n03 * s5 + n23 * s2 - m33 * s1
-        b13 = n02 * s5 - m22 * s2 + n23 * s1
-        b22 = n03 * s4 - n13 * s2 + m33 * s0
-        b23 = -n02 * s4 + n12 * s2 - n23 * s0
-        b33 = n02 * s3 - n12 * s1 + m22 * s0
-        e01, e02, e03 = b01 * b01, b02 * b02, b03 * b03
-        e12, e13, e23 = b12 * b12, b13 * b13, b23 * b23
-        best = b00 * b00 + e01 + e02 + e03
-        w, x, y, z = b00, b01, b02, b03
-        nj = b11 * b11 + e01 + e12 + e13
-        use = nj > best
-        w = b01 if use else w
-        x = b11 if use else x
-        y = b12 if use else y
-        z = b13 if use else z
-        best = nj if use else best
-        nj = b22 * b22 + e02 + e12 + e23
-        use = nj > best
-        w = b02 if use else w
-        x = b12 if use else x
-        y = b22 if use else y
-        z = b23 if use else z
-        best = nj if use else best
-        nj = b33 * b33 + e03 + e13 + e23
-        use = nj > best
-        w = b03 if use else w
-        x = b13 if use else x
-        y = b23 if use else y
-        z = b33 if use else z
-        best = nj if use else best
-        l3 = max(lam, 1e-300)
-        weak = not (math.sqrt(best) > 1e-10 * (l3 * l3 * l3)) and math.isfinite(lam)
-        out[_WEAK, k] = 1.0 if weak else 0.0
-        s = 2.0 / best
-        xs, ys, zs = x * s, y * s, z * s
-        wx, wy, wz = w * xs, w * ys, w * zs
-        xx, xy, xz = x * xs, x * ys, x * zs
-        yy, yz, zz = y * ys, y * zs, z * zs
-        r00, r01, r02 = 1.0 - (yy + zz), xy - wz, xz + wy
-        r10, r11, r12 = xy + wz, 1.0 - (xx + zz), yz - wx
-        r20, r21, r22 = xz - wy, yz + wx, 1.0 - (xx + yy)
-        out[0, k], out[1, k], out[2, k] = r00, r01, r02
-        out[3, k], out[4, k], out[5, k] = r10, r11, r12
-        out[6, k], out[7, k], out[8, k] = r20, r21, r22
-        px, py, pz = st[_PX, k], st[_PY, k], st[_PZ, k]
-        out[_TX, k] = st[_QX, k] - (r00 * px + r01 * py + r02 * pz)
-        out[_TY, k] = st[_QY, k] - (r10 * px + r11 * py + r12 * pz)
-        out[_TZ, k] = st[_QZ, k] - (r20 * px + r21 * py + r22 * pz)
-        # residual Σw|q̃ − R p̃|² = G − 2 tr(R S)
-        trRS = (r00 * sxx + r01 * syx + r02 * szx + r10 * sxy + r11 * syy + r12 * szy
-                + r20 * sxz + r21 * syz + r22 * szz)
-        out[_RMS, k] = math.sqrt(max(st[_G, k] - 2.0 * trRS, 0.0) / st[_SW, k])
-
-
-@numba.njit(**_JIT)
 def kabsch_batch(P, Q, W, weighted, R, t, rms, code, npts, flags):
     """Weighted Kabsch fits of ``B`` problems, written into the output arrays.
 
@@ -351,7 +235,7 @@ def kabsch_batch(P, Q, W, weighted, R, t, rms, code, npts, flags):
     (:func:`_moments_raw`; the rows with NaN skipped by :func:`_moments_about` where the sums
     come out non-finite), then, for the block together, the centred moments (:func:`_centre`,
     with a second pass for the rare problems that need it), the rotations, ``t`` and the RMS
-    (:func:`_rotations`).
+    (:func:`reconstruction.registration.qcp.rotations_block`).
 
     Parameters
     ----------
@@ -393,7 +277,7 @@ def kabsch_batch(P, Q, W, weighted, R, t, rms, code, npts, flags):
         for k in range(nb):
             if st[_RECENTRE, k] != 0.0:
                 _recentre(P, Q, W, a + k, weighted, st, k)
-        _rotations(st, nb, out)
+        rotations_block(st, nb, out)
         for k in range(nb):
             b = a + k
             c = 0
