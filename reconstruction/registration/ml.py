@@ -1,0 +1,189 @@
+"""Maximum-likelihood rigid fit with both clouds' per-point covariances (Gauss–Newton on SO(3)).
+
+The estimator that reaches the Cramér–Rao bound of :mod:`reconstruction.accuracy`: it minimises
+the Mahalanobis residuals ``rᵢᵀ (C_Qᵢ + R C_Pᵢ Rᵀ)⁻¹ rᵢ`` and returns the 6×6 covariance of the
+rotation and translation, ``[δθ, δt]`` with ``R_true = exp([δθ×]) R``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import chi2 as _chi2
+
+from reconstruction._geometry import (
+    as_float,
+    check_probability,
+    rotation_from_rotvec,
+    scalar_or_array,
+    skew,
+)
+from reconstruction.registration.kabsch import kabsch_flat, prepare_clouds
+from reconstruction.registration.residuals import (
+    check_covariance_pair,
+    mahalanobis2,
+    residual_information,
+    residual_rms,
+)
+from reconstruction.registration.result import KABSCH_REASONS, RigidRegistration
+from reconstruction.registration.robust import fit_rigid_robust
+
+__all__ = ["fit_rigid_ml"]
+
+
+def fit_rigid_ml(P, Q, cov_P, cov_Q, *, robust: bool = True, R0=None, t0=None,
+                 gate_probability: float = 0.9973, max_iterations: int = 20,
+                 ransac_iterations: int = 1000, rng: np.random.Generator | int | None = None
+                 ) -> RigidRegistration:
+    """Maximum-likelihood rigid fit with both clouds' per-point covariances.
+
+    Minimises ``Σᵢ rᵢᵀ (C_Qᵢ + R C_Pᵢ Rᵀ)⁻¹ rᵢ`` with ``rᵢ = Qᵢ − R Pᵢ − t`` by Gauss–Newton on
+    ``R ← exp([δθ×]) R``, ``t ← t + δt`` (the residual covariance is refreshed every iteration).
+    Eliminating the unknown true points from the errors-in-variables likelihood gives exactly this
+    cost, so at convergence the inverse Gauss–Newton information is the Cramér–Rao bound of
+    :func:`reconstruction.accuracy.attitude_increment_crlb` evaluated at the estimate; it is
+    returned as ``cov``.  Inliers are re-selected every iteration by the chi-square gate.
+
+    Parameters
+    ----------
+    P, Q : array_like (..., N, 3)
+        Matched clouds in a common frame (e.g. W at t and t + Δt), m; NaN rows are ignored.
+    cov_P, cov_Q : array_like (..., N, 3, 3)
+        Per-point covariances in the same frame, m² (e.g. ``Triangulation.cov_W``).
+    robust : bool
+        Start from :func:`fit_rigid_robust` (RANSAC with the same gate) and gate outliers; with
+        ``False``, start from Kabsch weighted by ``1/tr C`` and keep every point.
+    R0, t0 : array_like (..., 3, 3), (..., 3), optional
+        Initial motion (replaces the start above; the gate still applies when ``robust``).
+    gate_probability : float
+        Inlier gate on the Mahalanobis residual, χ²₃ quantile.
+    max_iterations : int
+        Gauss–Newton iterations (it stops on convergence).
+    ransac_iterations : int
+        Hypothesis budget of the RANSAC start.
+    rng : numpy.random.Generator or int or None
+        Random source of the RANSAC start.
+
+    Returns
+    -------
+    RigidRegistration
+        ``method="ml"`` with ``cov`` (6×6, ``[δθ, δt]``), ``inliers``, ``chi2`` and ``dof``.
+    """
+    P, Q, _ = prepare_clouds(P, Q, None)
+    covs = check_covariance_pair(cov_P, cov_Q, P.shape)
+    if covs is None:
+        raise ValueError("cov_P, cov_Q: required")
+    gate_probability = check_probability(gate_probability, "gate_probability")
+    batch, N = P.shape[:-2], P.shape[-2]
+    Pf = P.reshape((-1, N, 3))
+    Qf = Q.reshape((-1, N, 3))
+    B = Pf.shape[0]
+    cPf = np.broadcast_to(covs[0], P.shape + (3,)).reshape((-1, N, 3, 3))
+    cQf = np.broadcast_to(covs[1], P.shape + (3,)).reshape((-1, N, 3, 3))
+    valid = (np.all(np.isfinite(Pf), -1) & np.all(np.isfinite(Qf), -1)
+             & np.all(np.isfinite(cPf), (-2, -1)) & np.all(np.isfinite(cQf), (-2, -1)))
+    Pz = np.where(valid[..., None], Pf, 0.0)
+    Qz = np.where(valid[..., None], Qf, 0.0)
+    cPz = np.where(valid[..., None, None], cPf, np.eye(3))
+    cQz = np.where(valid[..., None, None], cQf, np.eye(3))
+    gate2 = _chi2.ppf(gate_probability, 3)
+
+    # ---- start
+    if R0 is not None or t0 is not None:
+        if R0 is None or t0 is None:
+            raise ValueError("R0, t0: give both or neither")
+        R = np.broadcast_to(as_float(R0, "R0"), batch + (3, 3)).reshape(-1, 3, 3).copy()
+        t = np.broadcast_to(as_float(t0, "t0"), batch + (3,)).reshape(-1, 3).copy()
+        reason = np.full(B, "", dtype=object)
+        start_ok = np.ones(B, bool)
+    elif robust:
+        start = fit_rigid_robust(Pf.reshape(P.shape), Qf.reshape(Q.shape),
+                                 cov_P=cPf.reshape(P.shape + (3,)),
+                                 cov_Q=cQf.reshape(P.shape + (3,)),
+                                 gate_probability=gate_probability,
+                                 max_iterations=ransac_iterations, rng=rng)
+        R = np.asarray(start.R).reshape(-1, 3, 3)
+        t = np.asarray(start.t).reshape(-1, 3)
+        start_ok = np.asarray(start.ok).reshape(-1)
+        reason = np.asarray(start.failure_reason, dtype=object).reshape(-1)
+    else:
+        wtr = np.where(valid, 1.0 / np.trace(cPz + cQz, axis1=-2, axis2=-1), 0.0)
+        R, t, code, *_ = kabsch_flat(Pz, Qz, wtr)
+        start_ok = code == 0
+        reason = np.array(KABSCH_REASONS, dtype=object)[code]
+    R = np.where(start_ok[:, None, None], R, np.eye(3))
+    t = np.where(start_ok[:, None], t, 0.0)
+
+    # ---- Gauss–Newton
+    def residual_info(R, t):
+        r = Qz - Pz @ np.swapaxes(R, -1, -2) - t[:, None, :]
+        W = residual_information(R, cPz, cQz)
+        return r, W
+
+    inl = valid.copy()
+    for _ in range(int(max_iterations)):
+        r, W = residual_info(R, t)
+        if robust:
+            inl = valid & (mahalanobis2(r, W) < gate2)
+        Wm = W * inl[..., None, None]
+        RP = Pz @ np.swapaxes(R, -1, -2)
+        Sx = skew(RP)                                    # ∂r/∂δθ = [RP×], ∂r/∂δt = −I
+        StW = np.swapaxes(Sx, -1, -2) @ Wm
+        Htt = np.sum(StW @ Sx, axis=1)
+        Htx = -np.sum(StW, axis=1)
+        Hxx = np.sum(Wm, axis=1)
+        gt = np.sum((StW @ r[..., None])[..., 0], axis=1)
+        gx = -np.sum((Wm @ r[..., None])[..., 0], axis=1)
+        Hm = np.empty((B, 6, 6))
+        Hm[:, :3, :3], Hm[:, :3, 3:], Hm[:, 3:, :3], Hm[:, 3:, 3:] = (
+            Htt, Htx, np.swapaxes(Htx, -1, -2), Hxx)
+        g = np.concatenate([gt, gx], -1)
+        solvable = (np.sum(inl, -1) >= 3) & np.all(np.isfinite(Hm), (-2, -1))
+        Hs = np.where(solvable[:, None, None], Hm, np.eye(6))
+        gs = np.where(solvable[:, None], g, 0.0)
+        try:
+            d = -np.linalg.solve(Hs, gs[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            d = np.stack([-np.linalg.lstsq(h, gg, rcond=None)[0] for h, gg in zip(Hs, gs,
+                                                                                  strict=True)])
+        d = np.where(np.isfinite(d), d, 0.0)
+        R = rotation_from_rotvec(d[:, :3]) @ R
+        t = t + d[:, 3:]
+        if np.max(np.abs(d), initial=0.0) < 1e-12:
+            break
+    r, W = residual_info(R, t)
+    if robust:
+        inl = valid & (mahalanobis2(r, W) < gate2)
+    d2 = np.where(inl, mahalanobis2(r, W), 0.0)
+    # final information and covariance
+    Wm = W * inl[..., None, None]
+    Sx = skew(Pz @ np.swapaxes(R, -1, -2))
+    StW = np.swapaxes(Sx, -1, -2) @ Wm
+    Hm = np.empty((B, 6, 6))
+    Hm[:, :3, :3] = np.sum(StW @ Sx, axis=1)
+    Hm[:, :3, 3:] = -np.sum(StW, axis=1)
+    Hm[:, 3:, :3] = np.swapaxes(Hm[:, :3, 3:], -1, -2)
+    Hm[:, 3:, 3:] = np.sum(Wm, axis=1)
+    n_in = np.sum(inl, -1)
+    # collinear check on the inlier set (rank of the correlation)
+    _, _, code, *_ = kabsch_flat(Pz, Qz, inl.astype(float))
+    degenerate = code != 0
+    ok = start_ok & ~degenerate & (n_in >= 3)
+    Hs = np.where(ok[:, None, None], Hm, np.eye(6))
+    cov = np.linalg.inv(Hs)
+    cov = np.where(ok[:, None, None], cov, np.nan)
+    reason = np.where(start_ok & degenerate, np.array(KABSCH_REASONS, dtype=object)[code], reason)
+    reason = np.where(ok, "", np.where(reason == "", "fewer than 3 inliers", reason)).astype(str)
+    rms = residual_rms(Pz, Qz, R, t, inl)
+    R = np.where(ok[:, None, None], R, np.nan)
+    t = np.where(ok[:, None], t, np.nan)
+    inl &= ok[:, None]
+    return RigidRegistration(
+        R=R.reshape(batch + (3, 3)), t=t.reshape(batch + (3,)), cov=cov.reshape(batch + (6, 6)),
+        inliers=inl.reshape(batch + (N,)), n_inliers=np.sum(inl, -1).reshape(batch),
+        rms_m=np.where(ok, rms, np.nan).reshape(batch),
+        chi2=np.where(ok, np.sum(d2, -1), np.nan).reshape(batch),
+        dof=(3 * np.sum(inl, -1) - 6).reshape(batch),
+        ok=scalar_or_array(ok.reshape(batch)), failure_reason=scalar_or_array(reason.reshape(batch)), method="ml",
+    )
+
+
