@@ -114,8 +114,21 @@ def omega_matrices(w: np.ndarray) -> np.ndarray:
 
 
 def quaternion_products(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Hamilton products ``p ⊗ q`` as ``L(p) q``; ``(..., 4)`` arrays broadcast against each other."""
-    return (quaternion_left_matrices(p) @ q[..., None])[..., 0]
+    """Hamilton products ``p ⊗ q = [p0 q0 − p·q, p0 q + q0 p + p × q]``; ``(..., 4)`` broadcast.
+
+    ``matrices_from_quaternions(p ⊗ q) = R(p) R(q)``.
+    """
+    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack(
+        [
+            pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw,
+        ],
+        axis=-1,
+    )
 
 
 def quaternion_conjugates(q: np.ndarray) -> np.ndarray:
@@ -133,23 +146,24 @@ def canonical_quaternions(q: np.ndarray) -> np.ndarray:
 
 
 def quaternions_from_rotvecs(v: np.ndarray) -> np.ndarray:
-    """Unit quaternions ``exp(v/2) = [cos(θ/2), sin(θ/2) v/θ]`` of rotation vectors, ``θ = |v|``.
+    """Unit quaternions ``exp([0, v/2]) = [cos(θ/2), sin(θ/2) v/θ]`` of rotation vectors, ``θ = |v|``.
 
     Parameters
     ----------
     v : ndarray, shape (..., 3)
-        Rotation vectors, rad.  Below ``θ = 1e-6`` the factor ``sin(θ/2)/θ`` is its Taylor
-        series ``1/2 − θ²/48``.
+        Rotation vectors, rad.  Below ``θ/2 = 1e-4`` the factor ``sin(θ/2)/(θ/2)`` is its Taylor
+        series ``1 − x²/6 + x⁴/120`` (``x = θ/2``).
 
     Returns
     -------
     ndarray, shape (..., 4)
     """
-    a = np.sqrt(np.sum(v * v, -1, keepdims=True))
-    h = 0.5 * a
-    small = a < 1e-6
-    s = np.where(small, 0.5 - a * a / 48.0, np.sin(h) / np.where(small, 1.0, a))
-    return np.concatenate([np.cos(h), s * v], -1)
+    half = 0.5 * v
+    a = np.linalg.norm(half, axis=-1, keepdims=True)
+    small = a < 1e-4
+    a_safe = np.where(small, 1.0, a)
+    sinc = np.where(small, 1.0 - a * a / 6.0 + a**4 / 120.0, np.sin(a_safe) / a_safe)
+    return np.concatenate([np.cos(a), sinc * half], -1)
 
 
 def rotvecs_from_quaternions(q: np.ndarray) -> np.ndarray:
@@ -158,37 +172,48 @@ def rotvecs_from_quaternions(q: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     q : ndarray, shape (..., 4)
-        Unit quaternions; ``q`` and ``−q`` give the same vector (the representative with
-        ``w >= 0`` is used).
+        Unit quaternions (not normalised here); ``q`` and ``−q`` give the same vector (the
+        representative of :func:`canonical_quaternions` is used).
 
     Returns
     -------
     ndarray, shape (..., 3)
     """
-    sgn = np.where(q[..., :1] < 0, -1.0, 1.0)
-    w = q[..., :1] * sgn
-    v = q[..., 1:] * sgn
-    s = np.sqrt(np.sum(v * v, -1, keepdims=True))
-    ang = 2.0 * np.arctan2(s, w)
-    small = s < 1e-9
-    # near identity w ≈ 1 and 2 atan2(s, w)/s → 2/w
-    return np.where(small, 2.0 / np.maximum(w, 0.5), ang / np.where(small, 1.0, s)) * v
+    q = canonical_quaternions(q)
+    w = np.clip(q[..., :1], -1.0, 1.0)
+    v = q[..., 1:]
+    s = np.linalg.norm(v, axis=-1, keepdims=True)
+    a = np.arctan2(s, w)
+    small = s < 1e-8
+    # near identity w ≈ 1 and atan2(s, w)/s → 1/w (w > 0 there since |q| = 1 and w >= 0)
+    factor = np.where(small, 1.0 / np.maximum(w, 0.5), a / np.where(small, 1.0, s))
+    return 2.0 * (factor * v)
 
 
 def matrices_from_quaternions(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices ``R_AB`` of unit quaternions ``q_AB`` via ``L(q) Rm(q*)``.
+    """Rotation matrices ``R_AB`` of unit quaternions ``q_AB`` (Hamilton, active).
 
     Parameters
     ----------
     q : ndarray, shape (..., 4)
-        Unit quaternions (not normalised here).
+        Unit quaternions (not normalised here: the formula uses ``w² + x² + y² + z² = 1``).
 
     Returns
     -------
     ndarray, shape (..., 3, 3)
-        The lower-right 3×3 block of ``L(q) Rm(q*)``.
     """
-    return (quaternion_left_matrices(q) @ quaternion_right_matrices(quaternion_conjugates(q)))[..., 1:, 1:]
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz = x * y, x * z, y * z
+    wx, wy, wz = w * x, w * y, w * z
+    return np.stack(
+        [
+            np.stack([1 - 2 * (yy + zz), 2 * (xy - wz), 2 * (xz + wy)], -1),
+            np.stack([2 * (xy + wz), 1 - 2 * (xx + zz), 2 * (yz - wx)], -1),
+            np.stack([2 * (xz - wy), 2 * (yz + wx), 1 - 2 * (xx + yy)], -1),
+        ],
+        -2,
+    )
 
 
 def quaternions_from_matrices(R: np.ndarray) -> np.ndarray:

@@ -1,9 +1,12 @@
-"""Unit quaternions: Hamilton product, scalar first ``[w, x, y, z]`` (ARCHITECTURE §2).
+"""Unit quaternions: Hamilton product, scalar first ``[w, x, y, z]`` (``docs/conventions.md``).
 
 ``q_AB`` is the rotation whose matrix ``R_AB = matrix_from_quat(q_AB)`` maps B-components to
 A-components, ``v_A = R_AB @ v_B``, and ``R(q_AB ⊗ q_BC) = R_AB @ R_BC``.  ``q`` and ``-q`` are the
 same attitude.  Every function is vectorised over leading batch axes: quaternions ``(..., 4)``,
 vectors ``(..., 3)``, matrices ``(..., 3, 3)``.
+
+Each function validates its input and then calls the unchecked kernel of :mod:`attitude.batch`
+(the hot loops call those kernels directly).
 
 Kinematics (003 eq 25–26): ``q̇_NB = ½ q_NB ⊗ [0, ω_B]`` with ω_B the rate of B relative to N in
 B components.
@@ -13,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike
+
+from attitude import batch
 
 __all__ = [
     "check_quat",
@@ -73,13 +78,14 @@ def check_vec3(v: ArrayLike, *, name: str = "v") -> np.ndarray:
 
 
 def skew(v: ArrayLike) -> np.ndarray:
-    """Cross-product matrix ``[v×]`` with ``skew(v) @ w == cross(v, w)``; ``(..., 3) → (..., 3, 3)``."""
+    """Cross-product matrix ``[v×]`` with ``skew(v) @ w == cross(v, w)``; ``(..., 3) → (..., 3, 3)``.
+
+    Not value-checked: NaN components give NaN entries (the callers run inside sweeps).
+    """
     v = _as_float(v)
-    z = np.zeros_like(v[..., 0])
-    x, y, w = v[..., 0], v[..., 1], v[..., 2]
-    return np.stack(
-        [np.stack([z, -w, y], -1), np.stack([w, z, -x], -1), np.stack([-y, x, z], -1)], -2
-    )
+    if v.ndim == 0 or v.shape[-1] != 3:
+        raise ValueError(f"v: expected shape (..., 3), got {v.shape}")
+    return batch.cross_product_matrices(v)
 
 
 def quat_multiply(p: ArrayLike, q: ArrayLike) -> np.ndarray:
@@ -87,25 +93,12 @@ def quat_multiply(p: ArrayLike, q: ArrayLike) -> np.ndarray:
 
     ``[p0 q0 − p·q, p0 q + q0 p + p × q]``; ``matrix_from_quat(p ⊗ q) = R(p) @ R(q)``.
     """
-    p = _as_float(p)
-    q = _as_float(q)
-    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
-    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.stack(
-        [
-            pw * qw - px * qx - py * qy - pz * qz,
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-        ],
-        axis=-1,
-    )
+    return batch.quaternion_products(_as_float(p), _as_float(q))
 
 
 def quat_conjugate(q: ArrayLike) -> np.ndarray:
     """Conjugate ``[w, −x, −y, −z]``: the inverse rotation of a unit quaternion (``q_BA`` from ``q_AB``)."""
-    q = _as_float(q)
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
+    return batch.quaternion_conjugates(_as_float(q))
 
 
 def quat_normalize(q: ArrayLike) -> np.ndarray:
@@ -119,12 +112,7 @@ def quat_normalize(q: ArrayLike) -> np.ndarray:
 
 def quat_canonical(q: ArrayLike) -> np.ndarray:
     """Representative with ``w >= 0`` (for ``w == 0`` the first non-zero component positive)."""
-    q = _as_float(q)
-    s = np.sign(q[..., 0])
-    for k in (1, 2, 3):
-        s = np.where(s == 0, np.sign(q[..., k]), s)
-    s = np.where(s == 0, 1.0, s)
-    return q * s[..., None]
+    return batch.canonical_quaternions(_as_float(q))
 
 
 def matrix_from_quat(q: ArrayLike) -> np.ndarray:
@@ -132,19 +120,7 @@ def matrix_from_quat(q: ArrayLike) -> np.ndarray:
 
     The quaternion is normalised first, so slightly non-unit input gives an orthonormal matrix.
     """
-    q = quat_normalize(q)
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    xx, yy, zz = x * x, y * y, z * z
-    xy, xz, yz = x * y, x * z, y * z
-    wx, wy, wz = w * x, w * y, w * z
-    return np.stack(
-        [
-            np.stack([1 - 2 * (yy + zz), 2 * (xy - wz), 2 * (xz + wy)], -1),
-            np.stack([2 * (xy + wz), 1 - 2 * (xx + zz), 2 * (yz - wx)], -1),
-            np.stack([2 * (xz - wy), 2 * (yz + wx), 1 - 2 * (xx + yy)], -1),
-        ],
-        -2,
-    )
+    return batch.matrices_from_quaternions(quat_normalize(q))
 
 
 def quat_from_matrix(R: ArrayLike) -> np.ndarray:
@@ -157,31 +133,9 @@ def quat_from_matrix(R: ArrayLike) -> np.ndarray:
     R = _as_float(R)
     if R.shape[-2:] != (3, 3):
         raise ValueError(f"R: expected shape (..., 3, 3), got {R.shape}")
-    m00, m11, m22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
-    tr = m00 + m11 + m22
-    cand = np.stack([tr, m00, m11, m22], -1)
-    k = np.argmax(cand, axis=-1)
-    out = np.empty(R.shape[:-2] + (4,))
-    # case w largest
-    r = np.sqrt(np.maximum(1.0 + tr, 0.0))
-    s = np.where(r > 0, 0.5 / np.where(r > 0, r, 1.0), 0.0)
-    qw = np.stack([0.5 * r, (R[..., 2, 1] - R[..., 1, 2]) * s, (R[..., 0, 2] - R[..., 2, 0]) * s,
-                   (R[..., 1, 0] - R[..., 0, 1]) * s], -1)
-    r = np.sqrt(np.maximum(1.0 + m00 - m11 - m22, 0.0))
-    s = np.where(r > 0, 0.5 / np.where(r > 0, r, 1.0), 0.0)
-    qx = np.stack([(R[..., 2, 1] - R[..., 1, 2]) * s, 0.5 * r, (R[..., 0, 1] + R[..., 1, 0]) * s,
-                   (R[..., 0, 2] + R[..., 2, 0]) * s], -1)
-    r = np.sqrt(np.maximum(1.0 - m00 + m11 - m22, 0.0))
-    s = np.where(r > 0, 0.5 / np.where(r > 0, r, 1.0), 0.0)
-    qy = np.stack([(R[..., 0, 2] - R[..., 2, 0]) * s, (R[..., 0, 1] + R[..., 1, 0]) * s, 0.5 * r,
-                   (R[..., 1, 2] + R[..., 2, 1]) * s], -1)
-    r = np.sqrt(np.maximum(1.0 - m00 - m11 + m22, 0.0))
-    s = np.where(r > 0, 0.5 / np.where(r > 0, r, 1.0), 0.0)
-    qz = np.stack([(R[..., 1, 0] - R[..., 0, 1]) * s, (R[..., 0, 2] + R[..., 2, 0]) * s,
-                   (R[..., 1, 2] + R[..., 2, 1]) * s, 0.5 * r], -1)
-    kk = k[..., None]
-    out = np.where(kk == 0, qw, np.where(kk == 1, qx, np.where(kk == 2, qy, qz)))
-    return quat_canonical(quat_normalize(out))
+    if not np.all(np.isfinite(R)):
+        raise ValueError("R: contains non-finite values")
+    return batch.quaternions_from_matrices(R)
 
 
 def quat_from_axis_angle(axis: ArrayLike, angle_rad: ArrayLike) -> np.ndarray:
@@ -202,12 +156,7 @@ def quat_exp(v: ArrayLike) -> np.ndarray:
 
     ``quat_exp(θ n / 2)`` is the rotation by θ about n.  Accurate for ``|v| → 0`` (Taylor series).
     """
-    v = check_vec3(v, name="v")
-    a = np.linalg.norm(v, axis=-1, keepdims=True)
-    small = a < 1e-4
-    a_safe = np.where(small, 1.0, a)
-    sinc = np.where(small, 1.0 - a * a / 6.0 + a**4 / 120.0, np.sin(a_safe) / a_safe)
-    return np.concatenate([np.cos(a), sinc * v], -1)
+    return batch.quaternions_from_rotvecs(2.0 * check_vec3(v, name="v"))
 
 
 def quat_log(q: ArrayLike) -> np.ndarray:
@@ -215,25 +164,17 @@ def quat_log(q: ArrayLike) -> np.ndarray:
 
     Uses the representative with ``w >= 0`` so the result has norm ``<= π/2``.
     """
-    q = quat_canonical(quat_normalize(q))
-    w = np.clip(q[..., :1], -1.0, 1.0)
-    v = q[..., 1:]
-    s = np.linalg.norm(v, axis=-1, keepdims=True)
-    a = np.arctan2(s, w)
-    small = s < 1e-8
-    # near identity w ≈ 1 and atan2(s, w)/s → 1/w (w > 0 there since |q| = 1 and w >= 0)
-    factor = np.where(small, 1.0 / np.maximum(w, 0.5), a / np.where(small, 1.0, s))
-    return factor * v
+    return 0.5 * batch.rotvecs_from_quaternions(quat_normalize(q))
 
 
 def quat_from_rotvec(rotvec: ArrayLike) -> np.ndarray:
     """Quaternion of a rotation vector ``θ n`` (rad)."""
-    return quat_exp(0.5 * check_vec3(rotvec, name="rotvec"))
+    return batch.quaternions_from_rotvecs(check_vec3(rotvec, name="rotvec"))
 
 
 def rotvec_from_quat(q: ArrayLike) -> np.ndarray:
     """Rotation vector ``θ n`` with ``θ ∈ [0, π]`` of a unit quaternion."""
-    return 2.0 * quat_log(q)
+    return batch.rotvecs_from_quaternions(quat_normalize(q))
 
 
 def quat_angle(q: ArrayLike) -> np.ndarray:
@@ -270,18 +211,7 @@ def quat_rotate(q: ArrayLike, v: ArrayLike) -> np.ndarray:
 
 def omega_matrix(omega: ArrayLike) -> np.ndarray:
     """4×4 matrix Ω(ω) of 003 eq (26): ``q̇ = ½ Ω(ω) q`` for ``q̇ = ½ q ⊗ [0, ω]``, ``(..., 3) → (..., 4, 4)``."""
-    w = check_vec3(omega, name="omega")
-    x, y, z = w[..., 0], w[..., 1], w[..., 2]
-    o = np.zeros_like(x)
-    return np.stack(
-        [
-            np.stack([o, -x, -y, -z], -1),
-            np.stack([x, o, z, -y], -1),
-            np.stack([y, -z, o, x], -1),
-            np.stack([z, y, -x, o], -1),
-        ],
-        -2,
-    )
+    return batch.omega_matrices(check_vec3(omega, name="omega"))
 
 
 def quat_derivative(q: ArrayLike, omega_B: ArrayLike) -> np.ndarray:
