@@ -44,7 +44,7 @@ from chaser.cylindrical import (
     rig_detections,
     track_frame,
 )
-from experiments.scenarios import ScenarioResult
+from experiments.results import ScenarioResult
 from vision.cylindrical import CylindricalCamera, measure_spot_centres
 
 __all__ = ["Config", "run", "plot", "TABLE1_MM", "TABLE2_DEG", "TABLE2_ERR_DEG", "PAPER_MAX_ERR_DEG"]
@@ -409,7 +409,7 @@ def run(cfg: Config, *, progress: Callable[[int, int], None]) -> ScenarioResult:
             res = track_frame(cams, state, det, t[f], settings=settings)
             state = res.state
             est[f] = state.position_W
-            measured[f] = res.measured
+            measured[f] = res.ok
             n_planes[f] = res.n_planes
             dropped[f] = res.overlapped.sum(axis=(1, 2))
             d = np.linalg.norm(state.position_W[:, None, :] - Pd[f][None], axis=-1)

@@ -37,7 +37,7 @@ from chaser.tof import (
     random_matching_trials,
     verify_labels,
 )
-from experiments.scenarios import ScenarioResult
+from experiments.results import ScenarioResult
 from vision.tof import CooperativeTarget, default_marker_plate, render_tof_frame, sr4000
 
 __all__ = ["Config", "run", "plot", "MATCHING_CASES", "MATCHERS", "TABLE1_000", "table1_stats"]
@@ -172,7 +172,7 @@ def table1_stats(values: np.ndarray) -> dict[str, list[float]]:
 
 
 def _pose_row(res, R_true: np.ndarray, r_true: np.ndarray) -> tuple[list[float], float, float]:
-    if not res.found:
+    if not res.ok:
         return [np.nan] * 6, np.nan, np.nan
     row = list(res.r_CS_S * 1e3) + list(res.pitch_yaw_roll_deg)
     att = float(np.degrees(rotation_angle(res.R_SC @ R_true.T)))
@@ -214,7 +214,7 @@ def run(cfg: Config, *, progress: Callable[[int, int], None]) -> ScenarioResult:
         for e, est in enumerate(ests):
             res = pose(frame, est)
             vals[e, i], att[e, i], pos[e, i] = _pose_row(res, R_true, r_true)
-            n_matched[e, i], reason[e, i] = res.n_matched, res.reason
+            n_matched[e, i], reason[e, i] = res.n_matched, res.failure_reason
             if i == 0 and e == 0:
                 example = (frame, res)
         done += 1

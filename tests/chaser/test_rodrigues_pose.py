@@ -23,7 +23,6 @@ from attitude.quaternion import (
 from chaser.rodrigues_pose import (
     FAILURE_REASONS,
     GibbsPose,
-    _compose_switch,
     focal_plane_from_pixels,
     pixels_from_focal_plane,
     project_focal_plane,
@@ -31,6 +30,7 @@ from chaser.rodrigues_pose import (
     solve_pose_rodrigues,
     track_pose_rodrigues,
 )
+from chaser.rodrigues_pose.solver import _compose_switch
 from tests.attitude.strategies import unit_quats
 
 F_M = 0.2  # 001 §2.4: f = 200 mm

@@ -181,7 +181,7 @@ def test_matchers_reject_bad_shapes():
 def test_extraction_centroids_and_points_match_the_projected_marker_centres():
     f = render_tof_frame(CAM, CooperativeTarget(), np.eye(3), R_700, noise=False)
     det = extract_markers(f, CAM, PLATE)
-    assert det.n == 6 and det.reason == ""
+    assert det.n == 6 and det.failure_reason == ""
     truth = MODEL + R_700
     u, v, _ = pixel_range_from_points(truth, CAM)
     d_uv = np.linalg.norm(det.uv_px[:, None] - np.column_stack([u, v])[None], axis=-1)
@@ -198,7 +198,7 @@ def test_pose_at_700_mm_rms_attitude_below_0p14_deg_and_position_below_2_mm():
     for seed in range(8):
         f = render_tof_frame(CAM, target, np.eye(3), R_700, rng=seed)
         res = estimate_tof_pose(f, CAM, PLATE)
-        assert res.found and res.n_matched == 6
+        assert res.ok and res.n_matched == 6
         np.testing.assert_array_equal(np.sort(res.labels), np.arange(6))
         att.append(np.degrees(rotation_angle(res.R_SC)))
         pos.append(np.linalg.norm(res.r_CS_S - R_700))
@@ -211,7 +211,7 @@ def test_pose_of_a_tilted_plate_recovers_pitch_yaw_roll():
     R = matrix_from_euler([truth[1], truth[0], truth[2]], "321")
     r = np.array([0.02, -0.01, 0.8])
     res = estimate_tof_pose(render_tof_frame(CAM, CooperativeTarget(), R, r, rng=21), CAM, PLATE)
-    assert res.found
+    assert res.ok
     np.testing.assert_allclose(res.pitch_yaw_roll_rad, truth, atol=np.radians(0.3))
     np.testing.assert_allclose(res.r_CS_S, r, atol=0.002)
 
@@ -223,7 +223,7 @@ def test_plate_tilted_60_deg_keeps_all_six_markers_and_its_attitude(pitch_yaw_ro
     p, y, r = np.radians(pitch_yaw_roll_deg)
     R = matrix_from_euler([y, p, r], "321")
     res = estimate_tof_pose(render_tof_frame(CAM, CooperativeTarget(), R, R_700, rng=24), CAM, PLATE)
-    assert res.found and res.n_matched == 6
+    assert res.ok and res.n_matched == 6
     assert np.degrees(rotation_angle(res.R_SC @ R.T)) < 0.3
     assert np.linalg.norm(res.r_CS_S - R_700) < 0.001
 
@@ -231,7 +231,7 @@ def test_plate_tilted_60_deg_keeps_all_six_markers_and_its_attitude(pitch_yaw_ro
 def test_pose_labels_correct_with_a_hidden_marker_and_a_spurious_blob_in_the_image():
     target = dataclasses.replace(CooperativeTarget(), hidden_markers=(3,), spurious_xy_m=[(0.02, 0.0)])
     res = estimate_tof_pose(render_tof_frame(CAM, target, np.eye(3), R_700, rng=22), CAM, PLATE)
-    assert res.found and res.detections.n == 6 and res.n_matched == 5
+    assert res.ok and res.detections.n == 6 and res.n_matched == 5
     truth_pts = MODEL + R_700
     for k, lab in enumerate(res.labels):
         nearest = int(np.argmin(np.linalg.norm(truth_pts - res.detections.points_S[k], axis=1)))
@@ -257,7 +257,7 @@ def test_target_not_found_is_a_result_with_its_reason(case, reason):
     else:
         target = dataclasses.replace(target, hidden_markers=(0, 1, 2, 3))
     res = estimate_tof_pose(render_tof_frame(CAM, target, np.eye(3), r, rng=23, supersample=1, **kw), CAM, PLATE)
-    assert not res.found and res.reason == reason
+    assert not res.ok and res.failure_reason == reason
     assert np.isnan(res.r_CS_S).all() and np.isnan(res.R_SC).all()
 
 

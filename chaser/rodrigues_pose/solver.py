@@ -1,32 +1,17 @@
-"""Monocular relative pose from known feature points, parameterised by Gibbs vectors with switching (001).
+"""Gauss–Newton pose of a target from the images of its known feature points, with Gibbs-set switching (001).
 
-Paper 001 (Yue & Hou 2010, SEEDS_SPEC §2) estimates the pose of a target whose feature points
-``X_T`` are known in its body frame from their images in one camera, by Gauss–Newton on the
-image residuals.  The attitude is a Gibbs vector (classical Rodrigues parameters) ``g`` of one of
-four parameter sets ``i`` (001 eq 4), switched with the transforms ``T_j`` of 001 eq (5) whenever a
-component exceeds 1, so the parameterisation never reaches its 180° singularity.
+Paper 001 (Yue & Hou 2010) estimates the pose of a target whose feature points ``X_T`` are known in
+its body frame from their images in one camera, by Gauss–Newton on the image residuals.  The
+attitude is a Gibbs vector (classical Rodrigues parameters) ``g`` of one of four parameter sets
+``i`` (001 eq 4), switched with the transforms ``T_j`` of 001 eq (5) whenever a component exceeds
+1, so the parameterisation never reaches its 180° singularity.  Pose parameters and conventions:
+:mod:`chaser.rodrigues_pose.pose`; camera model: :mod:`chaser.rodrigues_pose.projection`.
 
-Model and conventions
----------------------
-* Point map (001 eq 6, FLAG P001-2): ``X_C = R_CT X_T + r_TC_C``.  ``R_CT`` maps target-body
-  components to camera components (it is the paper's ``R``) and ``r_TC_C`` (the paper's ``t``) is
-  the position of the target origin relative to the camera, in camera components.  The camera frame
-  ``C`` is the project's (ARCHITECTURE §2): ``z`` along the boresight, ``x`` right, ``y`` down.
-* Image (001 eq 7): focal-plane coordinates in metres of the inverted image behind the lens,
-  ``x = −f X_C / Z_C``, ``y = −f Y_C / Z_C``.  :func:`focal_plane_from_pixels` and
-  :func:`pixels_from_focal_plane` convert to and from OpenCV pixel coordinates
-  ``u = c_u + (f / p) X_C / Z_C``.
-* Attitude (001 eq 8′, FLAG P001-3): inside the solver, Shuster's convention, as in the paper:
-  ``R_CT = A(g^(i)) R^(i)`` with ``A`` Shuster's attitude matrix
-  (:func:`attitude.gibbs.shuster_matrix_from_gibbs_set`).  At the boundary, the project's Hamilton
-  quaternion ``q_CT`` (``matrix_from_quat(q_CT) = R_CT``); ``(g, i)`` is the parameter set of the
-  Hamilton ``q_TC`` (:attr:`GibbsPose.q_CT`, :meth:`GibbsPose.from_quat`).
-
-Iteration (001 §2.3, SEEDS_SPEC §2.2)
--------------------------------------
+Iteration (001 §2.3)
+--------------------
 Predicted camera points ``X̄_C = R(g₀) X_T + t₀`` (14), ``X_r = R(g₀) X_T`` (17), predicted image
 ``x̄ = −f X̄/Z̄`` (20), residual ``Δb = x − x̄`` (21), Jacobian ``A_j = J_c [2[X_r×] | I]`` (18, 25)
-with the corrected projection Jacobian of FLAG P001-1
+with the corrected projection Jacobian of flag P001-1 (docs/papers.md#p001-1)
 ``J_c = [[−f/Z̄, 0, f X̄/Z̄²], [0, −f/Z̄, f Ȳ/Z̄²]]``, least squares
 ``ΔX = (AᵀWA)⁻¹AᵀWΔb`` (28), update ``g ← δg * g`` (10) and ``t ← t + Δt`` (11), switch (5), stop
 when ``|δg| < ε₁`` and ``|Δt| < ε₂``.  The least-squares step (28) is solved from the
@@ -41,309 +26,22 @@ convergence within ``max_iterations``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from attitude.gibbs import (
-    best_gibbs_set,
-    gibbs_set_from_quat,
-    gibbs_switch,
-    quat_from_gibbs_set,
-    shuster_gibbs_compose,
-    shuster_matrix_from_gibbs_set,
-)
-from attitude.quaternion import check_quat, quat_conjugate
+from attitude.gibbs import gibbs_switch, shuster_gibbs_compose
+from chaser.rodrigues_pose.pose import FAILURE_REASONS, GibbsPose, RodriguesPoseResult
+from chaser.rodrigues_pose.projection import check_positive, predict_image_jacobian
 
-__all__ = [
-    "FAILURE_REASONS",
-    "GibbsPose",
-    "RodriguesPoseResult",
-    "focal_plane_from_pixels",
-    "pixels_from_focal_plane",
-    "project_focal_plane",
-    "projection_jacobian",
-    "solve_pose_rodrigues",
-    "track_pose_rodrigues",
-]
+__all__ = ["solve_pose_rodrigues", "track_pose_rodrigues"]
 
-#: Values of :attr:`RodriguesPoseResult.failure_reason` ("" means success).
-FAILURE_REASONS = (
-    "too_few_points",  # fewer than 3 visible points (001 eq 27 needs n >= 3)
-    "rank_deficient",  # rank A < 6 (001 eq 27: "extract more features")
-    "behind_camera",  # a visible point predicted at Z_C <= 0: the linearisation is meaningless
-    "gibbs_singular",  # non-switching variant: an update carried the fixed set through 180°
-    "diverged",  # non-finite iterate
-    "not_converged",  # eps_attitude / eps_translation_m not reached within max_iterations
-)
 _CODE = {name: k + 1 for k, name in enumerate(FAILURE_REASONS)}
 _REASON_NAMES = np.array(("",) + FAILURE_REASONS)
 
 
-# ---------------------------------------------------------------------------- pose state
-@dataclass(frozen=True)
-class GibbsPose:
-    """Relative pose in 001's parameters: Gibbs vector of a parameter set, and translation.
-
-    Attributes
-    ----------
-    g : (..., 3) ndarray
-        Gibbs vector of parameter set ``gibbs_set`` (001 eq 4, Shuster convention) such that
-        ``R_CT = A(g) R^(i)`` (001 eq 8′).  NaN where a solve failed.
-    gibbs_set : (...,) int ndarray
-        Parameter-set index ``i`` in {0, 1, 2, 3} (reference frame ``r^(i)`` = ``r^(0)`` turned by π
-        about its own i-th axis).
-    r_TC_C : (..., 3) ndarray
-        Target origin relative to the camera, camera components, m (001's ``t``).
-    """
-
-    g: np.ndarray
-    gibbs_set: np.ndarray
-    r_TC_C: np.ndarray
-
-    @classmethod
-    def from_quat(cls, q_CT: ArrayLike, r_TC_C: ArrayLike, *, gibbs_set: ArrayLike | None = None) -> GibbsPose:
-        """Pose from the project's Hamilton ``q_CT`` (``R_CT = matrix_from_quat(q_CT)``) and ``r_TC_C``.
-
-        ``gibbs_set=None`` picks the set whose denominator is the largest quaternion component
-        (every ``|g_j| <= 1``, :func:`attitude.gibbs.best_gibbs_set`); an explicit set (e.g. 0 for the
-        non-switching variant) is used as given and may be singular (``inf`` components).
-        """
-        q_CT = check_quat(q_CT, name="q_CT", unit=False)
-        r = np.asarray(r_TC_C, dtype=float)
-        if r.ndim == 0 or r.shape[-1] != 3 or not np.all(np.isfinite(r)):
-            raise ValueError(f"r_TC_C: expected finite array of shape (..., 3), got shape {r.shape}")
-        q_TC = quat_conjugate(q_CT)  # Shuster's A(q_TC) = R_TCᵀ = R_CT (FLAG P001-3)
-        if gibbs_set is None:
-            g, i = best_gibbs_set(q_TC)
-        else:
-            i = np.asarray(gibbs_set)
-            if not np.issubdtype(i.dtype, np.integer) or np.any((i < 0) | (i > 3)):
-                raise ValueError(f"gibbs_set: must be integers in 0..3, got {gibbs_set!r}")
-            with np.errstate(over="ignore"):  # a set within ~1e-308 of its singularity: inf
-                g = gibbs_set_from_quat(q_TC, i)
-            i = np.broadcast_to(i, g.shape[:-1])
-        shape = np.broadcast_shapes(g.shape, r.shape)
-        return cls(np.broadcast_to(g, shape).copy(), np.broadcast_to(i, shape[:-1]).astype(int),
-                   np.broadcast_to(r, shape).copy())
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        """Batch shape."""
-        return self.g.shape[:-1]
-
-    @property
-    def valid(self) -> np.ndarray:
-        """``(...,)`` bool: the pose holds finite numbers."""
-        return np.all(np.isfinite(self.g), -1) & np.all(np.isfinite(self.r_TC_C), -1)
-
-    @property
-    def R_CT(self) -> np.ndarray:
-        """``(..., 3, 3)`` target→camera matrix ``A(g^(i)) R^(i)`` (001 eq 8′); NaN where invalid."""
-        out = np.full(self.shape + (3, 3), np.nan)
-        ok = self.valid
-        out[ok] = shuster_matrix_from_gibbs_set(self.g[ok], self.gibbs_set[ok])
-        return out
-
-    @property
-    def q_CT(self) -> np.ndarray:
-        """``(..., 4)`` Hamilton ``q_CT`` (scalar first, ``w >= 0``); NaN where invalid."""
-        out = np.full(self.shape + (4,), np.nan)
-        ok = self.valid
-        out[ok] = quat_conjugate(quat_from_gibbs_set(self.g[ok], self.gibbs_set[ok]))
-        return out
-
-    def where(self, mask: ArrayLike, other: GibbsPose) -> GibbsPose:
-        """Element-wise choice: ``self`` where ``mask`` is true, ``other`` elsewhere."""
-        m = np.asarray(mask, dtype=bool)
-        return GibbsPose(np.where(m[..., None], self.g, other.g), np.where(m, self.gibbs_set, other.gibbs_set),
-                         np.where(m[..., None], self.r_TC_C, other.r_TC_C))
-
-
-@dataclass(frozen=True)
-class RodriguesPoseResult:
-    """Result of :func:`solve_pose_rodrigues` (batch shape ``...``) or :func:`track_pose_rodrigues`.
-
-    Attributes
-    ----------
-    pose : GibbsPose
-        The estimate; NaN where the solve failed.
-    ok : (...,) bool ndarray
-    failure_reason : (...,) str ndarray
-        ``""`` on success, else one of :data:`FAILURE_REASONS`.
-    iterations : (...,) int ndarray
-        Gauss–Newton updates applied.
-    switches : (...,) int ndarray
-        Parameter-set switches (001 eq 5) made during the solve.
-    n_points : (...,) int ndarray
-        Visible points used.
-    residual_rms_m : (...,) ndarray
-        RMS focal-plane reprojection residual at the returned pose (per coordinate, unweighted), m;
-        evaluated to first order in the last update, whose size is below ε₁, ε₂.
-    """
-
-    pose: GibbsPose
-    ok: np.ndarray
-    failure_reason: np.ndarray
-    iterations: np.ndarray
-    switches: np.ndarray
-    n_points: np.ndarray
-    residual_rms_m: np.ndarray
-
-    @property
-    def q_CT(self) -> np.ndarray:
-        """Hamilton ``q_CT`` ``(..., 4)``; NaN where failed."""
-        return self.pose.q_CT
-
-    @property
-    def R_CT(self) -> np.ndarray:
-        """``R_CT`` ``(..., 3, 3)``; NaN where failed."""
-        return self.pose.R_CT
-
-    @property
-    def r_TC_C(self) -> np.ndarray:
-        """Target position relative to the camera, camera components ``(..., 3)``, m; NaN where failed."""
-        return self.pose.r_TC_C
-
-
-# ---------------------------------------------------------------------------- camera model
-def _check_positive(value: float, name: str) -> float:
-    v = float(value)
-    if not np.isfinite(v) or v <= 0:
-        raise ValueError(f"{name}: must be a positive finite number, got {value!r}")
-    return v
-
-
-def project_focal_plane(points_T: ArrayLike, R_CT: ArrayLike, r_TC_C: ArrayLike, *,
-                        focal_length_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """001 eq (6)–(7): focal-plane image ``x = −f X_C/Z_C``, ``y = −f Y_C/Z_C`` of body-frame points.
-
-    Parameters
-    ----------
-    points_T : (..., M, 3) array
-        Feature points in the target body frame, m.
-    R_CT : (..., 3, 3) array
-        Target→camera rotation.
-    r_TC_C : (..., 3) array
-        Target origin relative to the camera, camera components, m.
-    focal_length_m : float
-
-    Returns
-    -------
-    xy_m : (..., M, 2) ndarray
-        Focal-plane coordinates, m (inverted image; NaN where ``Z_C <= 0``).
-    depth_m : (..., M) ndarray
-        ``Z_C`` of each point, m.
-    """
-    f = _check_positive(focal_length_m, "focal_length_m")
-    P = np.asarray(points_T, dtype=float)
-    R = np.asarray(R_CT, dtype=float)
-    t = np.asarray(r_TC_C, dtype=float)
-    if P.ndim < 2 or P.shape[-1] != 3:
-        raise ValueError(f"points_T: expected shape (..., M, 3), got {P.shape}")
-    if R.ndim < 2 or R.shape[-2:] != (3, 3):
-        raise ValueError(f"R_CT: expected shape (..., 3, 3), got {R.shape}")
-    if t.ndim < 1 or t.shape[-1] != 3:
-        raise ValueError(f"r_TC_C: expected shape (..., 3), got {t.shape}")
-    Xc = np.einsum("...ij,...mj->...mi", R, P) + t[..., None, :]
-    Z = Xc[..., 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        xy = np.where((Z > 0)[..., None], -f * Xc[..., :2] / Z[..., None], np.nan)
-    return xy, Z
-
-
-def focal_plane_from_pixels(uv_px: ArrayLike, *, pixel_size_m: float, principal_point_px: ArrayLike) -> np.ndarray:
-    """Focal-plane coordinates of 001 eq (7) from OpenCV pixels: ``x = −(u − c_u) p``, ``y = −(v − c_v) p``."""
-    p = _check_positive(pixel_size_m, "pixel_size_m")
-    uv = np.asarray(uv_px, dtype=float)
-    c = np.asarray(principal_point_px, dtype=float)
-    if uv.ndim == 0 or uv.shape[-1] != 2:
-        raise ValueError(f"uv_px: expected shape (..., 2), got {uv.shape}")
-    if c.shape != (2,):
-        raise ValueError(f"principal_point_px: expected shape (2,), got {c.shape}")
-    return -(uv - c) * p
-
-
-def pixels_from_focal_plane(xy_m: ArrayLike, *, pixel_size_m: float, principal_point_px: ArrayLike) -> np.ndarray:
-    """OpenCV pixels ``u = c_u − x/p``, ``v = c_v − y/p`` of 001 focal-plane coordinates (inverse of the above)."""
-    p = _check_positive(pixel_size_m, "pixel_size_m")
-    xy = np.asarray(xy_m, dtype=float)
-    c = np.asarray(principal_point_px, dtype=float)
-    if xy.ndim == 0 or xy.shape[-1] != 2:
-        raise ValueError(f"xy_m: expected shape (..., 2), got {xy.shape}")
-    if c.shape != (2,):
-        raise ValueError(f"principal_point_px: expected shape (2,), got {c.shape}")
-    return c - xy / p
-
-
-def _predict(P: np.ndarray, g: np.ndarray, i: np.ndarray, t: np.ndarray, f: float):
-    """Eq (14), (17), (20) and (25) for a flat batch: returns x̄ (B, M, 2), Z̄ (B, M), A_j (B, M, 2, 6).
-
-    ``A_j = J_c · (matrix of eq 18)`` is written out product by product: with ``a = −f/Z̄``,
-    ``b_x = f X̄/Z̄²``, ``b_y = f Ȳ/Z̄²`` (FLAG P001-1), row x is ``a·(18)₁ + b_x·(18)₃`` and row y is
-    ``a·(18)₂ + b_y·(18)₃``.
-    """
-    R = shuster_matrix_from_gibbs_set(g, i)
-    Xr = P @ np.swapaxes(R, -1, -2)  # (17)
-    Xc = Xr + t[:, None, :]  # (14)
-    X, Y, Z = Xc[..., 0], Xc[..., 1], Xc[..., 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv_z = 1.0 / Z
-        a = -f * inv_z
-        bx = -a * X * inv_z
-        by = -a * Y * inv_z
-    xbar = np.empty(Z.shape + (2,))
-    xbar[..., 0] = a * X  # (20)
-    xbar[..., 1] = a * Y
-    xr, yr, zr = 2.0 * Xr[..., 0], 2.0 * Xr[..., 1], 2.0 * Xr[..., 2]
-    A = np.zeros(Z.shape + (2, 6))
-    A[..., 0, 0] = -yr * bx
-    A[..., 0, 1] = -zr * a + xr * bx
-    A[..., 0, 2] = yr * a
-    A[..., 0, 3] = a
-    A[..., 0, 5] = bx
-    A[..., 1, 0] = zr * a - yr * by
-    A[..., 1, 1] = xr * by
-    A[..., 1, 2] = -xr * a
-    A[..., 1, 4] = a
-    A[..., 1, 5] = by
-    return xbar, Z, A
-
-
-def projection_jacobian(points_T: ArrayLike, pose: GibbsPose, *, focal_length_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted image (001 eq 20) and the 2×6 Jacobian ``A_j`` (eq 25) of every point.
-
-    ``A_j = J_c [2[X_r×] | I]`` with the corrected ``J_c`` of FLAG P001-1; columns are
-    ``[δg, Δt]`` where ``δg`` is the left (error) Gibbs vector of 001 eq (10) and ``Δt`` the additive
-    translation correction (eq 11).
-
-    Parameters
-    ----------
-    points_T : (M, 3) or (..., M, 3) array
-        Feature points in the target body frame, m.
-    pose : GibbsPose
-        Linearisation point, batch shape ``...``.
-    focal_length_m : float
-
-    Returns
-    -------
-    xy_m : (..., M, 2) ndarray
-    A : (..., M, 2, 6) ndarray
-    """
-    f = _check_positive(focal_length_m, "focal_length_m")
-    P = np.asarray(points_T, dtype=float)
-    if P.ndim < 2 or P.shape[-1] != 3:
-        raise ValueError(f"points_T: expected shape (..., M, 3), got {P.shape}")
-    shape = pose.shape
-    M = P.shape[-2]
-    Pb = np.broadcast_to(P, shape + (M, 3)).reshape(-1, M, 3)
-    xbar, _, A = _predict(Pb, pose.g.reshape(-1, 3), pose.gibbs_set.reshape(-1), pose.r_TC_C.reshape(-1, 3), f)
-    return xbar.reshape(shape + (M, 2)), A.reshape(shape + (M, 2, 6))
-
-
-# ---------------------------------------------------------------------------- the solver
-def _compose_switch(dg: np.ndarray, g: np.ndarray, i: np.ndarray, eta: float):
+def _compose_switch(dg: np.ndarray, g: np.ndarray, i: np.ndarray, eta: float) -> tuple[np.ndarray, np.ndarray]:
     """001 eq (10) then the switching rule (5), safe where the composed set lands exactly on 180°."""
     den = 1.0 - np.sum(dg * g, -1)
     g_new = np.empty_like(g)
@@ -370,7 +68,14 @@ def _compose_switch(dg: np.ndarray, g: np.ndarray, i: np.ndarray, eta: float):
     return g_new, i_new
 
 
-def _as_flat_problem(points_T, xy_m, visible, weights, shape):
+def _as_flat_problem(
+    points_T: ArrayLike,
+    xy_m: ArrayLike,
+    visible: ArrayLike | None,
+    weights: ArrayLike | None,
+    shape: tuple[int, ...],
+) -> tuple[tuple[int, ...], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Check the data of a solve and flatten it to ``B`` problems: ``(batch shape, P, xy, visible, w)``."""
     P = np.asarray(points_T, dtype=float)
     xy = np.asarray(xy_m, dtype=float)
     if P.ndim < 2 or P.shape[-1] != 3:
@@ -461,7 +166,7 @@ def solve_pose_rodrigues(
     max_iterations : int
         Updates allowed before ``"not_converged"``.  Typical solves take 4–6; a cube face seen
         head-on (4 coplanar points) leaves a shallow valley where Gauss–Newton contracts only
-        ~0.7 per update and needs up to ~40 (SEEDS_SPEC §2.7 suggests 20).
+        ~0.7 per update and needs up to ~40 (a cap of 20 would end those solves early).
     rcond : float
         Rank test of eq (27): the system is rank-deficient when the smallest singular value of the
         column-equilibrated ``√W A`` is below ``rcond`` times the largest (median 0.67 for a
@@ -473,10 +178,10 @@ def solve_pose_rodrigues(
     RodriguesPoseResult
         Batch shape = broadcast of the data's and ``initial``'s batch shapes.
     """
-    f = _check_positive(focal_length_m, "focal_length_m")
-    _check_positive(eps_attitude, "eps_attitude")
-    _check_positive(eps_translation_m, "eps_translation_m")
-    _check_positive(rcond, "rcond")
+    f = check_positive(focal_length_m, "focal_length_m")
+    check_positive(eps_attitude, "eps_attitude")
+    check_positive(eps_translation_m, "eps_translation_m")
+    check_positive(rcond, "rcond")
     if not isinstance(initial, GibbsPose):
         raise ValueError(f"initial: expected a GibbsPose, got {type(initial).__name__}")
     if int(max_iterations) != max_iterations or max_iterations < 1:
@@ -508,7 +213,7 @@ def solve_pose_rodrigues(
         if act.size == 0:
             break
         ga, ia, ta, va = g[act], i[act], t[act], vis[act]
-        xbar, Z, Aj = _predict(P[act], ga, ia, ta, f)
+        xbar, Z, Aj = predict_image_jacobian(P[act], ga, ia, ta, f)
         wgt = wgt_all[act]
         fail = np.zeros(act.size, np.int8)
         behind = ~(Z > 0) & va
@@ -583,7 +288,7 @@ def track_pose_rodrigues(
     *,
     focal_length_m: float,
     visible: ArrayLike | None = None,
-    **options,
+    **options: Any,
 ) -> RodriguesPoseResult:
     """Solve a sequence of epochs, each warm-started from the last successful solution (001 §2.3).
 
