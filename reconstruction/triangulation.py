@@ -1,7 +1,8 @@
-"""Multi-view triangulation with per-point covariance (003 §1.4, SEEDS_SPEC §3.3.3).
+"""Multi-view triangulation with per-point covariance (003 §1.4, eq (4)–(8)).
 
 The paper's weighted algebraic least squares (003 eq 4–6) is solved as the standard homogeneous
-DLT on normalised image coordinates (SEEDS_SPEC FLAG P003-3 d), then refined by Gauss–Newton on
+DLT on normalised image coordinates (flag P003-3 d, docs/papers.md#p003-3), then refined by
+Gauss–Newton on
 the reprojection error in pixels, which is the maximum-likelihood estimate under Gaussian pixel
 noise.  The inverse Gauss–Newton information is the point's 3×3 covariance (first order; it equals
 the Cramér–Rao bound of :func:`reconstruction.accuracy.point_covariance` at the estimate).
@@ -13,8 +14,8 @@ rejection test of 003 eq (8) becomes a chi-square gate on the normalised reproje
 must decrease with it (``1 / (W_ρ + ε₀)``); better, use the covariance.
 
 Everything is vectorised over leading batch axes (trials, epochs) and over points: a batch of
-``(..., M, n)`` observations is solved in one pass.  Failure is reported per point in ``status``
-and per cloud in ``ok`` / ``failure_reason``; it never raises inside a sweep.
+``(..., M, n)`` observations is solved in one pass.  Failure is reported per point in ``valid`` /
+``failure_code`` and per cloud in ``ok`` / ``failure_reason``; it never raises inside a sweep.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from reconstruction._geometry import (
     check_positive,
     check_probability,
     project,
+    scalar_or_array,
     sym3_inv,
 )
 
@@ -39,26 +41,27 @@ if TYPE_CHECKING:
     from vision.observation import Observation
 
 __all__ = [
-    "STATUS_OK",
-    "STATUS_TOO_FEW_VIEWS",
-    "STATUS_DEGENERATE",
-    "STATUS_BEHIND_CAMERA",
-    "STATUS_REPROJECTION",
-    "STATUS_REASONS",
+    "POINT_OK",
+    "FAILURE_TOO_FEW_VIEWS",
+    "FAILURE_DEGENERATE",
+    "FAILURE_BEHIND_CAMERA",
+    "FAILURE_REPROJECTION",
+    "FAILURE_REASONS",
     "Triangulation",
     "triangulate",
     "triangulate_from_observation",
 ]
 
-STATUS_OK = 0
-STATUS_TOO_FEW_VIEWS = 1
-STATUS_DEGENERATE = 2
-STATUS_BEHIND_CAMERA = 3
-STATUS_REPROJECTION = 4
+#: Per-point failure codes (``Triangulation.failure_code``); 0 is an accepted point.
+POINT_OK = 0
+FAILURE_TOO_FEW_VIEWS = 1
+FAILURE_DEGENERATE = 2
+FAILURE_BEHIND_CAMERA = 3
+FAILURE_REPROJECTION = 4
 _DROP_VIEW_CHI2 = float(_chi2.isf(1e-6, 2))
-#: Human-readable reason for each per-point status code (index = code).
-STATUS_REASONS = (
-    "ok",
+#: Failure reason of each per-point failure code (index = code; ``""`` for an accepted point).
+FAILURE_REASONS = (
+    "",
     "seen in fewer than 2 views",
     "degenerate ray geometry (parallel rays or point at infinity)",
     "behind a camera",
@@ -79,9 +82,9 @@ class Triangulation:
     cov_W : ndarray (..., M, 3, 3)
         First-order covariance of each point in W, m².  NaN where ``valid`` is False.
     valid : ndarray (..., M) bool
-        Point accepted (``status == STATUS_OK``).
-    status : ndarray (..., M) int8
-        Per-point code, see ``STATUS_REASONS``.
+        Point accepted (``failure_code == POINT_OK``): the per-point ``ok``.
+    failure_code : ndarray (..., M) int8
+        Per-point failure code, the reason is ``FAILURE_REASONS[code]``.
     views_used : ndarray (..., M, n) bool
         Views that entered the final estimate (a view can be dropped as an outlier).
     n_views : ndarray (..., M) int
@@ -102,7 +105,7 @@ class Triangulation:
     X_W: np.ndarray
     cov_W: np.ndarray
     valid: np.ndarray
-    status: np.ndarray
+    failure_code: np.ndarray
     views_used: np.ndarray
     n_views: np.ndarray
     rms_reprojection_px: np.ndarray
@@ -161,25 +164,21 @@ def _solve(uv: np.ndarray, w: np.ndarray, K: np.ndarray, T: np.ndarray, Kinv: np
     return X, H, Hinv, det, r, X_C[..., 2]
 
 
-def _cloud_reason(status: np.ndarray) -> np.ndarray:
-    """Per-cloud failure reason from the per-point status ``(..., M)``."""
-    batch = status.shape[:-1]
+def _cloud_reason(code: np.ndarray) -> np.ndarray:
+    """Per-cloud failure reason from the per-point failure codes ``(..., M)``."""
+    batch = code.shape[:-1]
     out = np.full(batch, "", dtype=object)
-    flat = status.reshape((int(np.prod(batch, dtype=int)), status.shape[-1]))
+    flat = code.reshape((int(np.prod(batch, dtype=int)), code.shape[-1]))
     reasons = out.reshape(-1)
     for i, s in enumerate(flat):
         if s.size == 0:
             reasons[i] = "no tracks to triangulate"
-        elif not np.any(s == STATUS_OK):
+        elif not np.any(s == POINT_OK):
             codes, counts = np.unique(s, return_counts=True)
-            code = int(codes[np.argmax(counts)])
-            reasons[i] = ("all points " + STATUS_REASONS[code] if counts.max() == s.size
-                          else "no point triangulated; mostly " + STATUS_REASONS[code])
+            c = int(codes[np.argmax(counts)])
+            reasons[i] = ("all points " + FAILURE_REASONS[c] if counts.max() == s.size
+                          else "no point triangulated; mostly " + FAILURE_REASONS[c])
     return out.astype(str)
-
-
-def _scalar(a: np.ndarray):
-    return a.item() if a.ndim == 0 else a
 
 
 def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
@@ -282,7 +281,7 @@ def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
         with np.errstate(invalid="ignore", divide="ignore"):
             rms = np.sqrt(np.sum(cws * e2, axis=-1) / np.sum(cws, axis=-1))
         nv = np.sum(use, axis=-1)
-        status = np.zeros(nv.shape, dtype=np.int8)
+        code = np.zeros(nv.shape, dtype=np.int8)
         tr = np.trace(H, axis1=-2, axis2=-1)
         degenerate = ~np.isfinite(X).all(-1) | ~(det > 1e-14 * (tr / 3.0) ** 3)
         behind = np.any(use & ~(depth > 0), axis=-1)
@@ -291,19 +290,19 @@ def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
         bad_fit = chi2 > thresh
         if max_rms_reprojection_px is not None:
             bad_fit |= rms > max_rms_reprojection_px
-        status[bad_fit] = STATUS_REPROJECTION
-        status[behind] = STATUS_BEHIND_CAMERA
-        status[degenerate] = STATUS_DEGENERATE
-        status[nv < 2] = STATUS_TOO_FEW_VIEWS
+        code[bad_fit] = FAILURE_REPROJECTION
+        code[behind] = FAILURE_BEHIND_CAMERA
+        code[degenerate] = FAILURE_DEGENERATE
+        code[nv < 2] = FAILURE_TOO_FEW_VIEWS
         worst = np.argmax(w * e2, axis=-1)
-        return X, Hinv, status, rms, chi2, nv, worst
+        return X, Hinv, code, rms, chi2, nv, worst
 
     cw_p = np.broadcast_to(cw[..., None, :], batch + (M, n))
-    X, cov, status, rms, chi2, nv, worst = run(present, uv0, K_b, T_b, Kinv_b, cw_p, sigma)
+    X, cov, code, rms, chi2, nv, worst = run(present, uv0, K_b, T_b, Kinv_b, cw_p, sigma)
     use = present.copy()
 
     if drop_worst_view and n >= 3:
-        retry = (status == STATUS_REPROJECTION) & (nv >= 3)
+        retry = (code == FAILURE_REPROJECTION) & (nv >= 3)
         if np.any(retry):
             idx = np.nonzero(retry)
             bidx = idx[:-1]
@@ -312,7 +311,7 @@ def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
             K_r = np.broadcast_to(K_b, batch + (1, n, 3, 3))[bidx + (0,)]
             T_r = np.broadcast_to(T_b, batch + (1, n, 4, 4))[bidx + (0,)]
             Ki_r = np.broadcast_to(Kinv_b, batch + (1, n, 3, 3))[bidx + (0,)]
-            X2, cov2, st2, rms2, chi22, nv2, _ = run(use_r, uv0[idx], K_r, T_r, Ki_r,
+            X2, cov2, code2, rms2, chi22, nv2, _ = run(use_r, uv0[idx], K_r, T_r, Ki_r,
                                                      cw_p[idx], sigma[idx])
             # accept the drop only if the dropped view is a clear outlier against the others:
             # innovation χ²₂ above the 1 − 10⁻⁶ quantile (a ~5σ test).  Without this test, good
@@ -329,22 +328,22 @@ def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
             det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] * S[:, 1, 0]
             d2 = (S[:, 1, 1] * r_d[:, 0] ** 2 - 2 * S[:, 0, 1] * r_d[:, 0] * r_d[:, 1]
                   + S[:, 0, 0] * r_d[:, 1] ** 2) / det
-            fixed = (st2 == STATUS_OK) & (d2 > _DROP_VIEW_CHI2)
+            fixed = (code2 == POINT_OK) & (d2 > _DROP_VIEW_CHI2)
             fidx = tuple(a[fixed] for a in idx)
-            X[fidx], cov[fidx], status[fidx] = X2[fixed], cov2[fixed], st2[fixed]
+            X[fidx], cov[fidx], code[fidx] = X2[fixed], cov2[fixed], code2[fixed]
             rms[fidx], chi2[fidx], nv[fidx] = rms2[fixed], chi22[fixed], nv2[fixed]
             use[fidx] = use_r[fixed]
 
-    valid = status == STATUS_OK
+    valid = code == POINT_OK
     X = np.where(valid[..., None], X, np.nan)
     cov = np.where(valid[..., None, None], cov, np.nan)
     rms = np.where(nv >= 2, rms, np.nan)
     n_valid = np.sum(valid, axis=-1)
-    reason = _cloud_reason(status)
+    reason = _cloud_reason(code)
     return Triangulation(
-        X_W=X, cov_W=cov, valid=valid, status=status, views_used=use, n_views=nv,
+        X_W=X, cov_W=cov, valid=valid, failure_code=code, views_used=use, n_views=nv,
         rms_reprojection_px=rms, chi2=chi2, n_valid=n_valid,
-        ok=_scalar(np.asarray(n_valid > 0)), failure_reason=_scalar(reason),
+        ok=scalar_or_array(np.asarray(n_valid > 0)), failure_reason=scalar_or_array(reason),
     )
 
 
@@ -354,21 +353,20 @@ def triangulate_from_observation(obs: Observation, *, pixel_sigma_px: float | No
 
     Uses ``obs.uv_px``, ``obs.K``, ``obs.T_CW`` and ``obs.pixel_sigma_px`` (override it with
     ``pixel_sigma_px``, e.g. for a noise-free observation whose σ is 0); ``options`` are passed
-    on.  An observation whose ``status`` is not ``"ok"`` gives a failed cloud whose
-    ``failure_reason`` names that status.
+    on.  An observation that is not ``ok`` gives a failed cloud whose ``failure_reason``
+    names the observation's ``failure_reason``.
     """
     sigma = obs.pixel_sigma_px if pixel_sigma_px is None else pixel_sigma_px
     if not sigma > 0:
         raise ValueError(f"pixel_sigma_px: the observation's σ is {sigma!r}; pass the σ to assume "
                          "(> 0) for a noise-free observation")
     tri = triangulate(obs.uv_px, obs.K, obs.T_CW, pixel_sigma_px=sigma, **options)
-    status = getattr(obs, "status", "ok")
-    if status != "ok":
+    if not obs.ok:
         return Triangulation(
             X_W=np.full_like(tri.X_W, np.nan), cov_W=np.full_like(tri.cov_W, np.nan),
-            valid=np.zeros_like(tri.valid), status=tri.status, views_used=tri.views_used,
+            valid=np.zeros_like(tri.valid), failure_code=tri.failure_code, views_used=tri.views_used,
             n_views=tri.n_views, rms_reprojection_px=tri.rms_reprojection_px, chi2=tri.chi2,
             n_valid=np.zeros_like(tri.n_valid), ok=False,
-            failure_reason=f"observation status: {status}",
+            failure_reason=f"observation failed: {obs.failure_reason}",
         )
     return tri

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from vision.camera import PinholeCamera, cameras_per_view, check_pose
-from vision.observation import STATUS_OK, STATUS_TOO_FEW_MATCHES, Observation
+from vision.observation import REASON_TOO_FEW_MATCHES, Observation
 
 __all__ = [
     "Keypoints",
@@ -441,7 +441,7 @@ def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence
     Observation
         Tracks with the descriptor of each track's first view; ``feature_id = -1`` and
         ``X_T_true = NaN`` (no ground truth here: see :func:`vision.rendered.label_tracks`).
-        ``status`` is ``"too few matches"`` when no track survives.
+        ``failure_reason`` is ``"too few matches"`` when no track survives.
     """
     kps = list(keypoints)
     n = len(kps)
@@ -487,4 +487,4 @@ def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence
     return Observation(uv_px=uv, descriptors=desc, K=K, T_CW=T, image_size=cams[0].image_size,
                        pixel_sigma_px=pixel_sigma_px, feature_id=np.full(M, -1, dtype=np.int64),
                        X_T_true=np.full((M, 3), np.nan),
-                       status=STATUS_OK if M > 0 else STATUS_TOO_FEW_MATCHES)
+                       failure_reason="" if M > 0 else REASON_TOO_FEW_MATCHES)

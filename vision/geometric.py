@@ -47,10 +47,9 @@ from numpy.typing import ArrayLike
 from attitude.quaternion import check_quat, matrix_from_quat
 from vision.camera import PinholeCamera, cameras_per_view, check_pose
 from vision.observation import (
-    STATUS_EARTH_SHADOW,
-    STATUS_OK,
-    STATUS_OUTSIDE_FOV,
-    STATUS_TOO_FEW_MATCHES,
+    REASON_EARTH_SHADOW,
+    REASON_OUTSIDE_FOV,
+    REASON_TOO_FEW_MATCHES,
     Observation,
 )
 from vision.target import Target
@@ -325,18 +324,18 @@ def _observe_batch(cams, T, target, q, sun, fsun, feats, rng, *, pixel_sigma_px,
     size = (int(W), int(H))
     for e in range(E):
         if fsun[e] == 0.0:
-            out.append(Observation.empty(K, T[e], size, pixel_sigma_px, STATUS_EARTH_SHADOW,
+            out.append(Observation.empty(K, T[e], size, pixel_sigma_px, REASON_EARTH_SHADOW,
                                          descriptor_dim=D))
             continue
         if in_fov[e].sum() < 2:
-            out.append(Observation.empty(K, T[e], size, pixel_sigma_px, STATUS_OUTSIDE_FOV,
+            out.append(Observation.empty(K, T[e], size, pixel_sigma_px, REASON_OUTSIDE_FOV,
                                          descriptor_dim=D))
             continue
         ve = vis[e]                                                     # (n, N)
         fid = np.nonzero(ve.sum(axis=0) >= min_views)[0]
         M = len(fid)
         if M == 0:
-            out.append(Observation.empty(K, T[e], size, pixel_sigma_px, STATUS_TOO_FEW_MATCHES,
+            out.append(Observation.empty(K, T[e], size, pixel_sigma_px, REASON_TOO_FEW_MATCHES,
                                          descriptor_dim=D))
             continue
         seen = ve[:, fid].T                                             # (M, n)
@@ -356,7 +355,7 @@ def _observe_batch(cams, T, target, q, sun, fsun, feats, rng, *, pixel_sigma_px,
             uv_e, desc, ids, X_true = uv_e[keep], desc[keep], ids[keep], X_true[keep]
         out.append(Observation(uv_px=uv_e, descriptors=desc, K=K, T_CW=T[e], image_size=size,
                                pixel_sigma_px=pixel_sigma_px, feature_id=ids, X_T_true=X_true,
-                               status=STATUS_OK if len(ids) else STATUS_TOO_FEW_MATCHES))
+                               failure_reason="" if len(ids) else REASON_TOO_FEW_MATCHES))
     return out
 
 

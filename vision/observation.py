@@ -4,8 +4,8 @@ Both observation modes return an :class:`Observation`:
 
 - the rendered mode (``vision.render`` → ``vision.features.match_views``): images are rendered,
   SIFT keypoints detected, matched with FLANN and Lowe's ratio test (0.6, paper 003), gated with the
-  epipolar constraint of the known relative pose (003 eq 2–3, corrected form of SEEDS_SPEC flag
-  P003-2) and chained into multi-view tracks;
+  epipolar constraint of the known relative pose (003 eq 2–3, corrected form, flag P003-2,
+  docs/papers.md#p003-2) and chained into multi-view tracks;
 - the geometric mode (``vision.geometric.observe``): a fixed set of surface feature points is
   projected into every camera where visible, with Gaussian pixel noise and a fraction of false
   matches.
@@ -23,16 +23,17 @@ import numpy as np
 
 __all__ = [
     "Observation",
-    "STATUS_EARTH_SHADOW",
-    "STATUS_OK",
-    "STATUS_OUTSIDE_FOV",
-    "STATUS_TOO_FEW_MATCHES",
+    "REASON_EARTH_SHADOW",
+    "REASON_OUTSIDE_FOV",
+    "REASON_TOO_FEW_MATCHES",
 ]
 
-STATUS_OK = "ok"
-STATUS_EARTH_SHADOW = "target in Earth shadow"
-STATUS_OUTSIDE_FOV = "target outside field of view"
-STATUS_TOO_FEW_MATCHES = "too few matches"
+#: ``failure_reason`` of an observation made while the target is in the Earth's shadow.
+REASON_EARTH_SHADOW = "target in Earth shadow"
+#: ``failure_reason`` when fewer than two cameras see the target.
+REASON_OUTSIDE_FOV = "target outside field of view"
+#: ``failure_reason`` when no multi-view track survives matching.
+REASON_TOO_FEW_MATCHES = "too few matches"
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,7 @@ class Observation:
     K : ndarray, shape (n, 3, 3)
         Intrinsic matrices of the n cameras.
     T_CW : ndarray, shape (n, 4, 4)
-        Camera-from-world poses (world W = Hill frame H), ARCHITECTURE §2.
+        Camera-from-world poses (world W = Hill frame H), see ``docs/conventions.md``.
     image_size : tuple of int
         ``(width, height)`` in pixels (the same for all views).
     pixel_sigma_px : float
@@ -62,9 +63,9 @@ class Observation:
     X_T_true : ndarray, shape (M, 3)
         Ground-truth target-body-frame coordinates of each track's point, metres (NaN when unknown).
         Truth only: never used by estimators.
-    status : str
-        ``"ok"``, or the reason the observation is empty (e.g. ``"target in Earth shadow"``,
-        ``"target outside field of view"``).
+    failure_reason : str
+        Empty when the observation is usable, else why it has no tracks (e.g.
+        ``"target in Earth shadow"``, ``"target outside field of view"``); see :attr:`ok`.
     """
 
     uv_px: np.ndarray
@@ -75,7 +76,7 @@ class Observation:
     pixel_sigma_px: float
     feature_id: np.ndarray
     X_T_true: np.ndarray
-    status: str = "ok"
+    failure_reason: str = ""
 
     def __post_init__(self) -> None:
         uv = np.asarray(self.uv_px, dtype=float)
@@ -104,8 +105,8 @@ class Observation:
         sigma = float(self.pixel_sigma_px)
         if not np.isfinite(sigma) or sigma < 0:
             raise ValueError(f"pixel_sigma_px must be finite and >= 0, got {self.pixel_sigma_px!r}")
-        if not isinstance(self.status, str) or not self.status:
-            raise ValueError(f"status must be a non-empty string, got {self.status!r}")
+        if not isinstance(self.failure_reason, str):
+            raise ValueError(f"failure_reason must be a string, got {self.failure_reason!r}")
         object.__setattr__(self, "uv_px", uv)
         object.__setattr__(self, "descriptors", desc)
         object.__setattr__(self, "K", K)
@@ -127,8 +128,8 @@ class Observation:
 
     @property
     def ok(self) -> bool:
-        """True when the observation is usable (``status == "ok"``)."""
-        return self.status == "ok"
+        """True when the observation is usable (``failure_reason`` is empty)."""
+        return not self.failure_reason
 
     @property
     def seen(self) -> np.ndarray:
@@ -142,7 +143,7 @@ class Observation:
         T_CW: np.ndarray,
         image_size: tuple[int, int],
         pixel_sigma_px: float,
-        status: str,
+        failure_reason: str,
         *,
         descriptor_dim: int = 128,
     ) -> Observation:
@@ -158,11 +159,13 @@ class Observation:
             ``(width, height)`` in pixels.
         pixel_sigma_px : float
             Pixel noise standard deviation, pixels.
-        status : str
-            Why the observation is empty (e.g. ``"target in Earth shadow"``).
+        failure_reason : str
+            Why the observation is empty (e.g. ``"target in Earth shadow"``); must not be empty.
         descriptor_dim : int, optional
             Descriptor length D of the empty ``(0, D)`` descriptor array (128, SIFT's, by default).
         """
+        if not failure_reason:
+            raise ValueError("failure_reason: an empty observation needs a non-empty reason")
         K = np.asarray(K, dtype=float)
         n = K.shape[0] if K.ndim == 3 else 0
         return cls(
@@ -174,5 +177,5 @@ class Observation:
             pixel_sigma_px=pixel_sigma_px,
             feature_id=np.zeros(0, dtype=np.int64),
             X_T_true=np.zeros((0, 3)),
-            status=status,
+            failure_reason=failure_reason,
         )

@@ -29,14 +29,15 @@ from numpy.typing import ArrayLike
 
 from attitude.quaternion import check_quat, matrix_from_quat
 from vision.camera import PinholeCamera, check_pose
-from vision.observation import STATUS_EARTH_SHADOW, STATUS_OK, STATUS_OUTSIDE_FOV
+from vision.observation import REASON_EARTH_SHADOW, REASON_OUTSIDE_FOV
 from vision.sensor import SensorModel
 from vision.target import Target
 
-__all__ = ["RenderResult", "cast_body_points", "render", "roi_of_target", "STATUS_OK", "STATUS_EARTH_SHADOW",
-           "STATUS_OUTSIDE_FOV", "STATUS_BEHIND_CAMERA"]
+__all__ = ["RenderResult", "cast_body_points", "render", "roi_of_target", "REASON_EARTH_SHADOW",
+           "REASON_OUTSIDE_FOV", "REASON_BEHIND_CAMERA"]
 
-STATUS_BEHIND_CAMERA = "target behind camera"
+#: ``failure_reason`` of a view whose camera has the whole target behind it.
+REASON_BEHIND_CAMERA = "target behind camera"
 
 _ROI_ALIGN_PX = 32
 
@@ -63,9 +64,9 @@ class RenderResult:
         True where the surface point is sunlit (facing the Sun and not self-shadowed).
     roi : tuple of int
         ``(x0, y0, x1, y1)``: the rendered pixel columns ``x0 <= u < x1`` and rows ``y0 <= v < y1``.
-    status : str
-        ``"ok"``, ``"target in Earth shadow"``, ``"target outside field of view"`` or
-        ``"target behind camera"``.
+    failure_reason : str
+        Empty when the target was rendered in sunlight, else ``"target in Earth shadow"`` (rendered,
+        but dark), ``"target outside field of view"`` or ``"target behind camera"``; see :attr:`ok`.
     camera : PinholeCamera
     T_CW : ndarray, (4, 4)
     exposure_s : float
@@ -80,14 +81,15 @@ class RenderResult:
     triangle_id: np.ndarray
     lit: np.ndarray
     roi: tuple[int, int, int, int]
-    status: str
+    failure_reason: str
     camera: PinholeCamera
     T_CW: np.ndarray
     exposure_s: float = float("nan")
 
     @property
     def ok(self) -> bool:
-        return self.status == STATUS_OK
+        """True when the target was rendered in sunlight (``failure_reason`` is empty)."""
+        return not self.failure_reason
 
     @property
     def roi_slices(self) -> tuple[slice, slice]:
@@ -156,17 +158,18 @@ def roi_of_target(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: 
     roi : tuple of int
         ``(x0, y0, x1, y1)`` in pixels (half-open), clipped to the image; the full frame when part of
         the box is behind the camera; ``(0, 0, 0, 0)`` when the target cannot be seen.
-    status : str
-        ``"ok"``, ``"target outside field of view"`` or ``"target behind camera"``.
+    failure_reason : str
+        Empty when the target can be seen, else ``"target outside field of view"`` or
+        ``"target behind camera"``.
     """
     T = np.asarray(T_CW, dtype=float)
     R_HT = matrix_from_quat(np.asarray(q_HT, dtype=float))
     X_C = (T[:3, :3] @ (R_HT @ target.bbox_corners_T.T)).T + T[:3, 3]
     z = X_C[:, 2]
     if np.all(z <= 0):
-        return (0, 0, 0, 0), STATUS_BEHIND_CAMERA
+        return (0, 0, 0, 0), REASON_BEHIND_CAMERA
     if np.any(z <= 1e-6):
-        return (0, 0, camera.width, camera.height), STATUS_OK
+        return (0, 0, camera.width, camera.height), ""
     uv = camera.project(X_C)
     x0 = int(np.floor(uv[:, 0].min())) - margin_px
     y0 = int(np.floor(uv[:, 1].min())) - margin_px
@@ -176,8 +179,8 @@ def roi_of_target(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: 
     y0 = max(0, (y0 // align_px) * align_px)
     x1, y1 = min(camera.width, x1), min(camera.height, y1)
     if x1 <= x0 or y1 <= y0:
-        return (0, 0, 0, 0), STATUS_OUTSIDE_FOV
-    return (x0, y0, x1, y1), STATUS_OK
+        return (0, 0, 0, 0), REASON_OUTSIDE_FOV
+    return (x0, y0, x1, y1), ""
 
 
 def cast_body_points(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLike,
@@ -269,7 +272,7 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
         Sensor chain (default ``SensorModel()``).
     sun_visible_fraction : float
         Fraction of the solar disc seen from the target: 1 in sunlight, 0 in Earth's umbra (the image
-        is then dark and ``status`` is ``"target in Earth shadow"``), in between in the penumbra.
+        is then dark and ``failure_reason`` is ``"target in Earth shadow"``), in between in the penumbra.
     ambient : float
         Diffuse ambient illumination (e.g. Earthshine) in units of the direct Sun, >= 0.
     specular, shadows : bool
@@ -302,18 +305,18 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
 
     R_HT = matrix_from_quat(q)
     if roi:
-        box, status = roi_of_target(camera, T, target, q, margin_px=int(roi_margin_px))
+        box, reason = roi_of_target(camera, T, target, q, margin_px=int(roi_margin_px))
     else:
-        box, status = (0, 0, W, H), STATUS_OK
+        box = (0, 0, W, H)
         _, st = roi_of_target(camera, T, target, q, margin_px=int(roi_margin_px))
-        status = st if st == STATUS_BEHIND_CAMERA else STATUS_OK
+        reason = st if st == REASON_BEHIND_CAMERA else ""
 
     def result(st: str, exposure_s: float = float("nan")) -> RenderResult:
         return RenderResult(image, radiance, depth, mask, X_img, tri_img, lit_img, box, st, camera, T,
                             exposure_s)
 
-    if status != STATUS_OK:
-        return result(status)
+    if reason:
+        return result(reason)
     x0, y0, x1, y1 = box
     h, w = y1 - y0, x1 - x0
     c_T, R_TC = _pose_in_body(T, R_HT)
@@ -331,7 +334,7 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
     t_hit = hits["t_hit"].numpy()
     hit = np.isfinite(t_hit)
     if not hit.any():
-        return result(STATUS_OUTSIDE_FOV)
+        return result(REASON_OUTSIDE_FOV)
     tid = hits["primitive_ids"].numpy().astype(np.int64)[hit]
     bary = hits["primitive_uvs"].numpy()[hit].astype(np.float64)
     X = target.point_on_triangles(tid, bary)                     # (N, 3) body frame, exact on face
@@ -382,4 +385,4 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
     subL[hit] = lit & (f_sun > 0)
     exposure = sensor.exposure_for(rad_roi)
     image[rs] = sensor.apply(rad_roi, rng=rng, exposure_s=exposure, origin_px=(x0, y0))
-    return result(STATUS_EARTH_SHADOW if f_sun == 0.0 else STATUS_OK, exposure)
+    return result(REASON_EARTH_SHADOW if f_sun == 0.0 else "", exposure)

@@ -18,10 +18,10 @@ from numpy.typing import ArrayLike
 from attitude.quaternion import matrix_from_quat
 from vision.camera import PinholeCamera, cameras_per_view, check_pose
 from vision.features import detect, match_views
-from vision.observation import STATUS_OK, STATUS_OUTSIDE_FOV, Observation
+from vision.observation import REASON_OUTSIDE_FOV, Observation
 from vision.render import (
-    STATUS_BEHIND_CAMERA,
-    STATUS_EARTH_SHADOW,
+    REASON_BEHIND_CAMERA,
+    REASON_EARTH_SHADOW,
     RenderResult,
     cast_body_points,
     render,
@@ -127,14 +127,14 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
     T = np.stack([r.T_CW for r in renders])
     K = np.stack([c.K for c in cams])
     size = cams[0].image_size
-    if all(r.status == STATUS_EARTH_SHADOW for r in renders):
-        return Observation.empty(K, T, size, pixel_sigma_px, STATUS_EARTH_SHADOW)
-    visible = [r.status == STATUS_OK for r in renders]
+    if all(r.failure_reason == REASON_EARTH_SHADOW for r in renders):
+        return Observation.empty(K, T, size, pixel_sigma_px, REASON_EARTH_SHADOW)
+    visible = [r.ok for r in renders]
     if sum(visible) < 2:
         # seen by fewer than two cameras: report the first blind view's reason
-        reason = next(r.status for r in renders if r.status != STATUS_OK)
+        reason = next(r.failure_reason for r in renders if not r.ok)
         return Observation.empty(K, T, size, pixel_sigma_px,
-                                 STATUS_OUTSIDE_FOV if reason == STATUS_BEHIND_CAMERA else reason)
+                                 REASON_OUTSIDE_FOV if reason == REASON_BEHIND_CAMERA else reason)
     kps = []
     for r, vis in zip(renders, visible, strict=True):
         if vis:

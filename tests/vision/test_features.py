@@ -200,7 +200,7 @@ def test_match_views_rejects_inconsistent_inputs():
     with pytest.raises(ValueError, match="min_views"):
         match_views([kp, kp], CAM, T, min_views=3)
     obs = match_views([kp, kp], CAM, T)
-    assert obs.status == "too few matches" and obs.n_tracks == 0
+    assert obs.failure_reason == "too few matches" and obs.n_tracks == 0
 
 
 def test_transform_helpers_used_by_the_tests_are_consistent():

@@ -8,7 +8,7 @@ from tests.vision.conftest import SUN_SIDE_H, facing_attitude, two_camera_poses
 from vision.camera import PinholeCamera, look_at
 from vision.features import epipolar_distance_px, fundamental_from_poses
 from vision.geometric import observe, observe_epochs, surface_features
-from vision.observation import STATUS_OUTSIDE_FOV, Observation
+from vision.observation import REASON_OUTSIDE_FOV, Observation
 from vision.render import cast_body_points
 
 CAM = PinholeCamera.from_fov(1024, 1024, fov_x_deg=20.0)
@@ -55,7 +55,7 @@ def test_hidden_and_unlit_features_are_not_reported(fy1):
     q = facing_attitude([1.0, 0.0, 0.0])
     # with the Sun behind the target, every surface the cameras see is unlit
     obs = observe(CAM, T, fy1, q, [-1.0, 0.0, 0.0], rng=0)
-    assert obs.n_tracks == 0 and obs.status == "too few matches"
+    assert obs.n_tracks == 0 and obs.failure_reason == "too few matches"
     # features on the far side of the bus (-x face) are never seen from +x
     lit = observe(CAM, T, fy1, q, SUN_SIDE_H, rng=0, false_match_fraction=0.0)
     X = lit.X_T_true
@@ -116,7 +116,7 @@ def test_batched_epochs_equal_single_epoch_calls_without_noise(fy1):
         one = observe(CAM, T[e], fy1, q[e], sun[e], rng=0, **kw)
         np.testing.assert_array_equal(batch[e].feature_id, one.feature_id)
         np.testing.assert_array_equal(batch[e].uv_px, one.uv_px)
-        assert batch[e].status == one.status
+        assert batch[e].failure_reason == one.failure_reason
 
 
 def test_geometric_and_rendered_observations_share_types_shapes_and_descriptor_scale(fy1_pair, fy1):
@@ -135,7 +135,7 @@ def test_geometric_and_rendered_observations_share_types_shapes_and_descriptor_s
 def test_target_outside_every_field_of_view_is_flagged_not_raised(fy1):
     T = np.stack([look_at([50.0, 0, 0], [0, 50.0, 0]), look_at([50.0, 5, 0], [0, 55.0, 0])])
     obs = observe(CAM, T, fy1, [1, 0, 0, 0], SUN_SIDE_H, rng=0)
-    assert obs.status == STATUS_OUTSIDE_FOV and obs.n_tracks == 0
+    assert obs.failure_reason == REASON_OUTSIDE_FOV and obs.n_tracks == 0
 
 
 @pytest.mark.parametrize("kw,name", [(dict(false_match_fraction=1.0), "false_match_fraction"),

@@ -6,7 +6,7 @@ import pytest
 from attitude.quaternion import matrix_from_quat
 from tests.vision.conftest import SUN_SIDE_H, facing_attitude, two_camera_poses
 from vision.camera import PinholeCamera, look_at
-from vision.observation import STATUS_EARTH_SHADOW
+from vision.observation import REASON_EARTH_SHADOW
 from vision.render import render, roi_of_target
 from vision.sensor import SensorModel
 from vision.target import (
@@ -129,10 +129,10 @@ def test_target_in_earth_shadow_gives_a_dark_image_and_an_empty_flagged_observat
     T = two_camera_poses(50.0)
     q = facing_attitude([1.0, 0.0, 0.0])
     r = render(cam, T[0], fy1, q, SUN_SIDE_H, sun_visible_fraction=0.0, rng=0)
-    assert r.status == STATUS_EARTH_SHADOW and r.image.max() <= 1 and r.mask.any()
+    assert r.failure_reason == REASON_EARTH_SHADOW and r.image.max() <= 1 and r.mask.any()
     for obs in (observe_rendered(cam, T, fy1, q, SUN_SIDE_H, sun_visible_fraction=0.0, rng=0),
                 observe_geometric(cam, T, fy1, q, SUN_SIDE_H, sun_visible_fraction=0.0, rng=0)):
-        assert obs.status == STATUS_EARTH_SHADOW and obs.n_tracks == 0 and obs.n_views == 2
+        assert obs.failure_reason == REASON_EARTH_SHADOW and obs.n_tracks == 0 and obs.n_views == 2
 
 
 def test_target_outside_the_field_of_view_or_behind_the_camera_is_flagged(fy1):
@@ -140,7 +140,7 @@ def test_target_outside_the_field_of_view_or_behind_the_camera_is_flagged(fy1):
     away = look_at([50.0, 0, 0], [0.0, 50.0, 0])              # target 45 deg off the boresight
     assert roi_of_target(cam, away, fy1, [1, 0, 0, 0])[1] == "target outside field of view"
     behind = look_at([50.0, 0, 0], [100.0, 0, 0])
-    assert render(cam, behind, fy1, [1, 0, 0, 0], SUN_SIDE_H).status == "target behind camera"
+    assert render(cam, behind, fy1, [1, 0, 0, 0], SUN_SIDE_H).failure_reason == "target behind camera"
 
 
 def test_sensor_noise_of_a_crop_equals_the_full_frame_noise_on_the_same_pixels():
