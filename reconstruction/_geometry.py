@@ -1,5 +1,5 @@
 """Private kernels shared by the reconstruction modules: input checks, pinhole projection and its
-Jacobian, small closed-form 3×3 algebra, rotation-vector exponential.
+Jacobian, small closed-form 3×3 algebra.
 
 Everything here is vectorised over leading axes and tolerant of NaN rows (a NaN input gives a NaN
 output, never an exception), because the public functions run inside sweeps.
@@ -125,41 +125,6 @@ def sym3_inv(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     out[..., 1, 2] = out[..., 2, 1] = E
     out[..., 2, 2] = F
     return out * inv_det[..., None, None], det
-
-
-def skew(v: np.ndarray) -> np.ndarray:
-    """``[v×]`` for ``(..., 3)`` (NaN-tolerant; ``attitude.quaternion.skew`` without checks)."""
-    z = np.zeros(v.shape[:-1])
-    x, y, w = v[..., 0], v[..., 1], v[..., 2]
-    return np.stack([np.stack([z, -w, y], -1), np.stack([w, z, -x], -1),
-                     np.stack([-y, x, z], -1)], -2)
-
-
-def rotation_from_rotvec(v: np.ndarray) -> np.ndarray:
-    """Rodrigues' formula ``exp([v×])`` for ``(..., 3)`` rotation vectors (rad), NaN-tolerant."""
-    th2 = np.sum(v * v, axis=-1)
-    th = np.sqrt(th2)
-    small = th2 < 1e-12
-    th_s = np.where(small, 1.0, th)
-    a = np.where(small, 1.0 - th2 / 6.0, np.sin(th_s) / th_s)
-    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(th_s)) / np.where(small, 1.0, th2))
-    S = skew(v)
-    return np.eye(3) + a[..., None, None] * S + b[..., None, None] * (S @ S)
-
-
-def rotvec_from_rotation(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (rad) of ``(..., 3, 3)`` rotation matrices, accurate for small angles.
-
-    Valid for angles below about 179°; used for error vectors, which are small.
-    """
-    w = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
-                  R[..., 1, 0] - R[..., 0, 1]], -1) * 0.5
-    s = np.linalg.norm(w, axis=-1)
-    c = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
-    th = np.arctan2(s, c)
-    small = s < 1e-12
-    f = np.where(small, 1.0, th / np.where(small, 1.0, s))
-    return w * f[..., None]
 
 
 def proper_rotation_from_svd(B: np.ndarray) -> np.ndarray:

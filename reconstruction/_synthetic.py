@@ -14,7 +14,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2 as _chi2
 
-from reconstruction._geometry import project, rotation_from_rotvec, rotvec_from_rotation
+from attitude.batch import matrices_from_rotvecs, rotvecs_from_matrices
+from reconstruction._geometry import project
 
 __all__: list[str] = []
 
@@ -129,7 +130,7 @@ def accuracy_study(*, n_views: int, n_trials: int, n_points: int = 200, distance
     R0 = Rotation.random(n_trials, random_state=rng).as_matrix()
     axis = rng.standard_normal((n_trials, 3))
     axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
-    dR = rotation_from_rotvec(np.radians(increment_deg) * axis)
+    dR = matrices_from_rotvecs(np.radians(increment_deg) * axis)
     X0 = X_T @ np.swapaxes(R0, -1, -2)
     X1 = X0 @ np.swapaxes(dR, -1, -2)
     tri0 = triangulate(observe(X0, K, T, sigma_px, rng), K, T, pixel_sigma_px=sigma_px)
@@ -146,7 +147,7 @@ def accuracy_study(*, n_views: int, n_trials: int, n_points: int = 200, distance
     lo, hi = (_chi2.ppf((1 - band) / 2, 3 * m) / m, _chi2.ppf(1 - (1 - band) / 2, 3 * m) / m)
 
     def err_rms(R_hat):
-        e = rotvec_from_rotation(dR @ np.swapaxes(R_hat, -1, -2))
+        e = rotvecs_from_matrices(dR @ np.swapaxes(R_hat, -1, -2))
         return float(np.degrees(np.sqrt(np.nanmean(np.sum(e * e, -1))))), e
 
     # --- ML with covariances, and its 6-dof consistency

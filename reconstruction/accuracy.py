@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from attitude.batch import cross_product_matrices
 from reconstruction._geometry import (
     as_float,
     check_intrinsics,
@@ -31,7 +32,7 @@ from reconstruction._geometry import (
     check_poses,
     check_positive,
     project,
-    skew,
+    scalar_or_array,
     sym3_inv,
 )
 
@@ -68,11 +69,6 @@ class AttitudeIncrementBound:
     def rms_angle_deg(self) -> np.ndarray:
         """``rms_angle_rad`` in degrees."""
         return np.degrees(self.rms_angle_rad)
-
-
-def _scalar(a):
-    a = np.asarray(a)
-    return a.item() if a.ndim == 0 else a
 
 
 def _visibility(X_W, K, T, image_size):
@@ -213,7 +209,7 @@ def attitude_increment_crlb(X_W, K, T_CW, *, pixel_sigma_px, visible=None, R_del
     C = C2 + Rb @ C1 @ np.swapaxes(Rb, -1, -2)
     W, _ = sym3_inv(np.where(use[..., None, None], C, np.eye(3)))
     W = np.where(use[..., None, None], W, 0.0)
-    S = skew(RX)
+    S = cross_product_matrices(RX)
     StW = np.swapaxes(S, -1, -2) @ W
     F = np.empty(batch + (6, 6))
     F[..., :3, :3] = np.sum(StW @ S, axis=-3)
@@ -237,5 +233,5 @@ def attitude_increment_crlb(X_W, K, T_CW, *, pixel_sigma_px, visible=None, R_del
     return AttitudeIncrementBound(
         cov=cov, cov_rotation=cov_rot,
         rms_angle_rad=np.sqrt(np.trace(cov_rot, axis1=-2, axis2=-1)), n_points=n_pts,
-        ok=_scalar(ok), failure_reason=_scalar(reason.astype(str)),
+        ok=scalar_or_array(ok), failure_reason=scalar_or_array(reason.astype(str)),
     )

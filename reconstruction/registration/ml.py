@@ -10,13 +10,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2 as _chi2
 
-from reconstruction._geometry import (
-    as_float,
-    check_probability,
-    rotation_from_rotvec,
-    scalar_or_array,
-    skew,
-)
+from attitude.batch import cross_product_matrices, matrices_from_rotvecs
+from reconstruction._geometry import as_float, check_probability, scalar_or_array
 from reconstruction.registration.kabsch import kabsch_flat, prepare_clouds
 from reconstruction.registration.residuals import (
     check_covariance_pair,
@@ -126,7 +121,7 @@ def fit_rigid_ml(P, Q, cov_P, cov_Q, *, robust: bool = True, R0=None, t0=None,
             inl = valid & (mahalanobis2(r, W) < gate2)
         Wm = W * inl[..., None, None]
         RP = Pz @ np.swapaxes(R, -1, -2)
-        Sx = skew(RP)                                    # ∂r/∂δθ = [RP×], ∂r/∂δt = −I
+        Sx = cross_product_matrices(RP)  # ∂r/∂δθ = [RP×], ∂r/∂δt = −I
         StW = np.swapaxes(Sx, -1, -2) @ Wm
         Htt = np.sum(StW @ Sx, axis=1)
         Htx = -np.sum(StW, axis=1)
@@ -146,7 +141,7 @@ def fit_rigid_ml(P, Q, cov_P, cov_Q, *, robust: bool = True, R0=None, t0=None,
             d = np.stack([-np.linalg.lstsq(h, gg, rcond=None)[0] for h, gg in zip(Hs, gs,
                                                                                   strict=True)])
         d = np.where(np.isfinite(d), d, 0.0)
-        R = rotation_from_rotvec(d[:, :3]) @ R
+        R = matrices_from_rotvecs(d[:, :3]) @ R
         t = t + d[:, 3:]
         if np.max(np.abs(d), initial=0.0) < 1e-12:
             break
@@ -156,7 +151,7 @@ def fit_rigid_ml(P, Q, cov_P, cov_Q, *, robust: bool = True, R0=None, t0=None,
     d2 = np.where(inl, mahalanobis2(r, W), 0.0)
     # final information and covariance
     Wm = W * inl[..., None, None]
-    Sx = skew(Pz @ np.swapaxes(R, -1, -2))
+    Sx = cross_product_matrices(Pz @ np.swapaxes(R, -1, -2))
     StW = np.swapaxes(Sx, -1, -2) @ Wm
     Hm = np.empty((B, 6, 6))
     Hm[:, :3, :3] = np.sum(StW @ Sx, axis=1)

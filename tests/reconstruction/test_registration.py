@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
-from reconstruction._geometry import proper_rotation_from_svd, rotvec_from_rotation
+from attitude.batch import rotvecs_from_matrices
+from reconstruction._geometry import proper_rotation_from_svd
 from reconstruction._synthetic import fy1_points, observe, ring_cameras
 from reconstruction.accuracy import attitude_increment_crlb
 from reconstruction.registration import (
@@ -154,7 +155,7 @@ def test_ransac_recovers_motion_with_40_percent_gross_outliers_and_flags_them():
     Q[out] = rng.uniform(-12, 12, (out.sum(), 3))
     fit = fit_rigid_robust(P, Q, threshold_m=0.03, rng=6)
     assert np.all(fit.ok)
-    ang = np.linalg.norm(rotvec_from_rotation(R @ np.swapaxes(fit.R, -1, -2)), axis=-1)
+    ang = np.linalg.norm(rotvecs_from_matrices(R @ np.swapaxes(fit.R, -1, -2)), axis=-1)
     assert np.max(ang) < 2e-3
     assert np.mean(fit.inliers[out]) < 0.01 and np.mean(fit.inliers[~out]) > 0.99
     again = fit_rigid_robust(P, Q, threshold_m=0.03, rng=6)
@@ -179,7 +180,7 @@ def scene3():
 
 
 def _rms_deg(dR, R):
-    e = rotvec_from_rotation(dR @ np.swapaxes(R, -1, -2))
+    e = rotvecs_from_matrices(dR @ np.swapaxes(R, -1, -2))
     return np.degrees(np.sqrt(np.mean(np.sum(e * e, -1)))), e
 
 
@@ -266,7 +267,7 @@ def test_open3d_icp_refines_a_small_unknown_correspondence_motion():
     Q = _apply(R, t, _box_cloud(np.random.default_rng(12)))  # different samples of the surface
     fit = register_icp(P, Q, max_correspondence_m=0.3)
     assert fit.ok and fit.method == "icp"
-    ang = np.linalg.norm(rotvec_from_rotation(R @ fit.R.T))
+    ang = np.linalg.norm(rotvecs_from_matrices(R @ fit.R.T))
     assert ang < np.radians(0.5)
     assert np.linalg.norm(fit.t - t) < 0.03
 
@@ -279,7 +280,7 @@ def test_open3d_fpfh_ransac_recovers_a_large_rotation_without_correspondences():
     Q = _apply(R, t, P[rng.permutation(len(P))]) + 0.002 * rng.standard_normal(P.shape)
     fit = register_fpfh_ransac(P, Q, voxel_size_m=0.1, rng=14)
     assert fit.ok and fit.method == "fpfh_ransac"
-    ang = np.linalg.norm(rotvec_from_rotation(R @ fit.R.T))
+    ang = np.linalg.norm(rotvecs_from_matrices(R @ fit.R.T))
     assert ang < np.radians(1.0)
     assert np.linalg.norm(fit.t - t) < 0.05
     few = register_icp(P[:2], Q, max_correspondence_m=0.3)

@@ -11,10 +11,10 @@ from scipy.stats import chi2
 from reconstruction._synthetic import fy1_points, observe, ring_cameras
 from reconstruction.accuracy import point_covariance
 from reconstruction.triangulation import (
-    STATUS_BEHIND_CAMERA,
-    STATUS_DEGENERATE,
-    STATUS_REPROJECTION,
-    STATUS_TOO_FEW_VIEWS,
+    FAILURE_BEHIND_CAMERA,
+    FAILURE_DEGENERATE,
+    FAILURE_REPROJECTION,
+    FAILURE_TOO_FEW_VIEWS,
     triangulate,
     triangulate_from_observation,
 )
@@ -156,7 +156,7 @@ def test_two_view_mismatch_is_rejected_by_the_chi_square_gate():
     uv = observe(X, K, T, SIGMA, rng)
     uv[:10, 1, 0] += 20.0  # across the epipolar lines (which run along v here) by 20 px
     tri = triangulate(uv, K, T, pixel_sigma_px=SIGMA)
-    assert np.all(tri.status[:10] == STATUS_REPROJECTION)
+    assert np.all(tri.failure_code[:10] == FAILURE_REPROJECTION)
     assert np.all(np.isnan(tri.X_W[:10]))
     assert np.mean(tri.valid[10:]) > 0.95
 
@@ -168,7 +168,7 @@ def test_paper_threshold_on_rms_reprojection_rejects_points_above_it(cams3):
     tri = triangulate(observe(X, K, T, 2.0, rng), K, T, pixel_sigma_px=2.0,
                       max_rms_reprojection_px=1.0, drop_worst_view=False)
     assert np.all(tri.rms_reprojection_px[tri.valid] <= 1.0)
-    assert np.all(tri.rms_reprojection_px[tri.status == STATUS_REPROJECTION] > 1.0 - 1e-12)
+    assert np.all(tri.rms_reprojection_px[tri.failure_code == FAILURE_REPROJECTION] > 1.0 - 1e-12)
 
 
 def test_points_behind_the_cameras_are_reported_not_triangulated():
@@ -180,7 +180,7 @@ def test_points_behind_the_cameras_are_reported_not_triangulated():
     tri = triangulate(uv, K, T, pixel_sigma_px=SIGMA)
     assert not tri.ok
     assert tri.failure_reason == "all points behind a camera"
-    assert np.all(tri.status == STATUS_BEHIND_CAMERA)
+    assert np.all(tri.failure_code == FAILURE_BEHIND_CAMERA)
     assert np.all(np.isnan(tri.X_W))
 
 
@@ -196,12 +196,12 @@ def test_track_in_one_view_and_coincident_cameras_are_flagged():
     uv = observe(X, K, T, 0.0, 1)
     uv[0, 1:] = np.nan
     tri = triangulate(uv, K, T, pixel_sigma_px=SIGMA)
-    assert tri.status[0] == STATUS_TOO_FEW_VIEWS and np.all(tri.valid[1:])
+    assert tri.failure_code[0] == FAILURE_TOO_FEW_VIEWS and np.all(tri.valid[1:])
     Tsame = np.stack([T[0], T[0]])
     Ksame = np.stack([K[0], K[0]])
     uv2 = observe(X, Ksame, Tsame, 0.0, 1)
     tri2 = triangulate(uv2, Ksame, Tsame, pixel_sigma_px=SIGMA)
-    assert np.all(tri2.status == STATUS_DEGENERATE)
+    assert np.all(tri2.failure_code == FAILURE_DEGENERATE)
     assert not tri2.ok and "degenerate" in tri2.failure_reason
 
 
@@ -232,7 +232,7 @@ def test_bad_input_raises_value_error_naming_the_parameter(cams3):
         triangulate(uv, K, T, pixel_sigma_px=1.0, camera_weights=[1.0, -1.0, 1.0])
 
 
-def test_observation_wrapper_uses_its_fields_and_reports_its_status(cams3):
+def test_observation_wrapper_uses_its_fields_and_reports_its_failure_reason(cams3):
     from vision.observation import Observation
 
     K, T = cams3
