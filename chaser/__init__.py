@@ -10,6 +10,7 @@ __all__ = ["cylindrical", "rodrigues_pose", "tof"]
 
 
 def __getattr__(name: str) -> ModuleType:
+    """Import the sub-package ``name`` on first access."""
     if name in __all__:
         return importlib.import_module(f"chaser.{name}")
     raise AttributeError(f"module 'chaser' has no attribute {name!r}")

@@ -42,6 +42,7 @@ class CalibratedCamera:
         return self.intrinsic.pixels_from_angles(self.angles_from_world(X_W))
 
     def angles_from_pixels(self, uv_px: ArrayLike) -> np.ndarray:
+        """Spot centres ``(u, v)`` px ``(..., 2)`` → ``(α, β)`` rad by the RBF calibration (004 eq 12–13)."""
         return self.intrinsic.angles_from_pixels(uv_px)
 
 
@@ -76,14 +77,15 @@ class PlaneIntersection:
     failure_reason: np.ndarray
 
 
-def _sym_entries(nx, ny, nz, w2):
+def _sym_entries(nx: np.ndarray, ny: np.ndarray, nz: np.ndarray, w2: np.ndarray) -> tuple[np.ndarray, ...]:
     """Entries ``(xx, yy, zz, xy, xz, yz)`` of ``Σ_k w²_k n̂_k n̂_kᵀ`` from component arrays ``(K, ...)``."""
     wx, wy, wz = w2 * nx, w2 * ny, w2 * nz
     return ((wx * nx).sum(0), (wy * ny).sum(0), (wz * nz).sum(0), (wx * ny).sum(0), (wx * nz).sum(0),
             (wy * nz).sum(0))
 
 
-def _sym_inverse(a, b, c, e, f, g):
+def _sym_inverse(a: np.ndarray, b: np.ndarray, c: np.ndarray, e: np.ndarray, f: np.ndarray,
+                 g: np.ndarray) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
     """Adjugate and determinant of the symmetric matrices ``[[a, e, f], [e, b, g], [f, g, c]]``."""
     A00, A01, A02 = b * c - g * g, f * g - e * c, e * g - b * f
     A11, A12, A22 = a * c - f * f, e * f - a * g, a * b - e * e
@@ -91,7 +93,8 @@ def _sym_inverse(a, b, c, e, f, g):
     return (A00, A11, A22, A01, A02, A12), det
 
 
-def _sym_eigvals(a, b, c, e, f, g):
+def _sym_eigvals(a: np.ndarray, b: np.ndarray, c: np.ndarray, e: np.ndarray, f: np.ndarray,
+                 g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ascending eigenvalues of the same symmetric matrices (closed trigonometric form)."""
     q = (a + b + c) / 3.0
     p1 = e * e + f * f + g * g

@@ -61,10 +61,12 @@ class CylindricalRig:
 
     @property
     def n_cameras(self) -> int:
+        """Number of cameras C."""
         return len(self.cameras)
 
     @property
     def centres_W(self) -> np.ndarray:
+        """Camera centres ``(C, 3)`` in the world frame, ``−R_CWᵀ t_CW`` (m)."""
         return -np.einsum("cji,cj->ci", self.R_CW, self.t_CW)
 
     def true_angles(self, X_W: ArrayLike) -> np.ndarray:

@@ -15,6 +15,7 @@ import numpy as np
 from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import predict as kf_predict
 from filterpy.kalman import update as kf_update
+from numpy.typing import ArrayLike
 
 from chaser.cylindrical.intersection import CalibratedCamera, intersect_planes, measure_points
 from vision.cylindrical import LineSpots
@@ -94,6 +95,7 @@ class TrackState:
 
     @classmethod
     def empty(cls, n_targets: int) -> TrackState:
+        """States of ``n_targets`` targets, none initialised (NaN states)."""
         if int(n_targets) != n_targets or n_targets < 1:
             raise ValueError(f"n_targets: must be a positive integer, got {n_targets!r}")
         K = int(n_targets)
@@ -101,6 +103,7 @@ class TrackState:
 
     @property
     def position_W(self) -> np.ndarray:
+        """Positions ``(K, 3)`` in the world frame (m)."""
         return self.x[:, :3]
 
 
@@ -186,7 +189,8 @@ def _update(state: TrackState, k: int, X: np.ndarray, cov: np.ndarray, t_s: floa
     return TrackState(t, x, P, init)
 
 
-def _positions(spots) -> tuple[np.ndarray, np.ndarray | None]:
+def _positions(spots: LineSpots | ArrayLike) -> tuple[np.ndarray, np.ndarray | None]:
+    """Spot centres (px) of one CCD and their widths (None when only centres were given)."""
     if isinstance(spots, LineSpots):
         return np.asarray(spots.position_px, dtype=float), np.asarray(spots.fwhm_px, dtype=float)
     arr = np.asarray(spots, dtype=float).reshape(-1)

@@ -1,4 +1,4 @@
-"""Tests of the orthogonal cylindrical imaging pose system (paper 004, SEEDS_SPEC §4)."""
+"""Tests of the orthogonal cylindrical imaging pose system (paper 004)."""
 
 from __future__ import annotations
 
@@ -316,10 +316,11 @@ def test_exact_180_degree_pose_needs_switching():
     assert rotation_angle(wrong @ R.T) > np.deg2rad(10)
 
 
-def test_table2_row2_is_a_90_degree_rotation_under_eq9_11_and_167_7_under_appendix_a4():
-    """SEEDS_SPEC A.4 computes Table 2's rotation angles with scipy's extrinsic "zxy", i.e. the active
-    R_y R_x R_z, which is not the frame-rotation product implied by eq 9–11 (flag P004-3).  Under
-    eq 9–11, No. 2 is a 90.1° rotation; A.4's 167.7° rotation is the pose with all three angles negated."""
+def test_table2_row2_is_a_90_degree_rotation_under_eq9_11_and_167_7_as_an_active_zxy_rotation():
+    """Read with scipy's extrinsic "zxy", i.e. the active R_y R_x R_z, Table 2's angles give other
+    rotation angles than the frame-rotation product implied by eq 9–11 (flag P004-3,
+    docs/papers.md#p004-3).  Under eq 9–11, No. 2 is a 90.1° rotation; the active reading's 167.7°
+    rotation is the pose with all three angles negated."""
     ours = np.rad2deg(rotation_angle(_r_ob(TABLE2_DEG[1])))
     a4 = Rotation.from_euler("zxy", TABLE2_DEG[1], degrees=True)
     assert abs(ours - 90.086) < 1e-3

@@ -42,7 +42,7 @@ R_TC_C = np.array([0.3, -0.2, 100.0])
 
 
 def visible_vertices(q_CT, r_TC_C):
-    """Vertices with at least one adjacent face turned to the camera, n·(c − p) > 0 (SEEDS_SPEC §2.7)."""
+    """Vertices with at least one adjacent face turned to the camera, n·(c − p) > 0 (back-face culling)."""
     R = matrix_from_quat(q_CT)
     c_T = -np.einsum("...ji,...j->...i", R, np.broadcast_to(r_TC_C, R.shape[:-1]))  # camera in T
     vis = np.zeros(c_T.shape[:-1] + (8,), bool)

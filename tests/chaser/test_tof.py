@@ -1,4 +1,4 @@
-"""Tests of the paper-000 TOF marker pipeline (chaser/tof.py): extraction, matching, pose."""
+"""Tests of the paper-000 TOF marker pipeline (chaser.tof): extraction, matching, pose."""
 
 from __future__ import annotations
 
