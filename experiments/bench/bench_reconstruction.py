@@ -84,7 +84,7 @@ def _registration_rows(quick: bool) -> list[BenchRow]:
     import pycolmap
     from scipy.spatial.transform import Rotation
 
-    from reconstruction._geometry import rotvec_from_rotation
+    from attitude.batch import rotvecs_from_matrices
     from reconstruction.registration import fit_rigid
 
     B = 1_000 if quick else 10_000
@@ -108,10 +108,10 @@ def _registration_rows(quick: bool) -> list[BenchRow]:
         t_cm = min(t_cm, best_time(loop, repeat=1))
         t_read = min(t_read, best_time(lambda: (np.vecdot(Pf, Pf), np.vecdot(Qf, Qf)), repeat=1))
     fit = fit_rigid(P, Q)
-    diff = np.max(np.linalg.norm(rotvec_from_rotation(fit.R @ np.swapaxes(R_cm, -1, -2)), axis=-1))
+    diff = np.max(np.linalg.norm(rotvecs_from_matrices(fit.R @ np.swapaxes(R_cm, -1, -2)), axis=-1))
 
     def rms(Rh):
-        e = rotvec_from_rotation(R @ np.swapaxes(Rh, -1, -2))
+        e = rotvecs_from_matrices(R @ np.swapaxes(Rh, -1, -2))
         return np.degrees(np.sqrt(np.mean(np.sum(e * e, -1))))
 
     return [throughput_row(
