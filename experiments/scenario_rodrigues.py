@@ -56,7 +56,7 @@ from chaser.rodrigues_pose import (
     project_focal_plane,
     solve_pose_rodrigues,
 )
-from experiments.scenarios import ScenarioResult
+from experiments.results import ScenarioResult
 from orbits.hill import hill_frame
 from orbits.scenario_001 import Table1Orbit
 from orbits.two_body import R_EARTH_M
@@ -449,7 +449,7 @@ def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from experiments.plots import save
+    from experiments.plotting import save
 
     ds = dataset
     t = ds["time_s"].values

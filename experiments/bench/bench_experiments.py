@@ -29,7 +29,7 @@ QUICK_GRID = {"formation.distance_m": [40.0, 80.0], "formation.axis_angle_deg": 
 
 
 def _config(**over) -> Config:
-    from experiments.scenarios import load_config
+    from experiments.config import load_config
 
     path = Path(__file__).resolve().parents[1] / "configs" / "003_fig5_fig6.toml"
     return load_config(path, overrides={"error_map.filter_runs": 0, **over})[1]
@@ -37,7 +37,7 @@ def _config(**over) -> Config:
 
 def _sweep(grid: dict, trials: int, steps: int, workers: int) -> tuple[float, dict]:
     from experiments.formation_pipeline import error_map_sweep_cell
-    from experiments.scenarios import load_config
+    from experiments.config import load_config
 
     path = Path(__file__).resolve().parents[1] / "configs" / "003_fig5_fig6.toml"
     base = {"error_map.filter_runs": 0, "error_map.steps": steps}

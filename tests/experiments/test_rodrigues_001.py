@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from experiments.scenarios import ConfigError, load_config
+from experiments.config import ConfigError, load_config
 
 CONFIG = "experiments/configs/001_rodrigues.toml"
 

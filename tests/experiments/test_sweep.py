@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from experiments.noise_calibration import ATTITUDE_NOISE_CELL
+from experiments.studies.noise_calibration import ATTITUDE_NOISE_CELL
 from experiments.sweep import cell_seed_sequences, open_sweep, redraw, run_sweep, sweep_summary
 
 REPO = Path(__file__).resolve().parents[2]
@@ -105,7 +105,7 @@ def test_bad_arguments_raise_value_error_naming_them(tmp_path):
 _KILLED_SCRIPT = textwrap.dedent(
     """
     import sys
-    from experiments.noise_calibration import ATTITUDE_NOISE_CELL
+    from experiments.studies.noise_calibration import ATTITUDE_NOISE_CELL
     from experiments.sweep import run_sweep
 
     if __name__ == "__main__":

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from experiments.scenarios import ConfigError, load_config
+from experiments.config import ConfigError, load_config
 
 CONFIG = Path(__file__).resolve().parents[2] / "experiments" / "configs" / "000_tof_700mm.toml"
 

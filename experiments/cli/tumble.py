@@ -6,15 +6,11 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from attitude.euler import euler_from_matrix
-from attitude.quaternion import matrix_from_quat
-from attitude.rigid_body import (
-    angular_momentum_N,
-    check_inertia,
-    kinetic_energy,
-    propagate_torque_free,
-)
-from experiments.cli import app, console, fail
+from attitude.rigid_body import check_inertia
+from experiments.cli._console import console, fail
+from experiments.studies.tumble import tumble_history
+
+__all__ = ["tumble"]
 
 
 def _parse_triple(text: str, name: str) -> np.ndarray:
@@ -27,7 +23,6 @@ def _parse_triple(text: str, name: str) -> np.ndarray:
     return values
 
 
-@app.command()
 def tumble(
     inertia_kgm2: str = typer.Option("100,120,80", "--inertia-kgm2", help="Principal moments Jx,Jy,Jz in kg·m²."),
     omega_deg_s: str = typer.Option("5,5,5", "--omega-deg-s", help="Initial body rate in deg/s."),
@@ -45,16 +40,13 @@ def tumble(
     if step_s <= 0:
         raise fail(f"--step-s: must be positive, got {step_s}")
     w0 = np.deg2rad(_parse_triple(omega_deg_s, "--omega-deg-s"))
-    t = np.arange(0.0, duration_s + 0.5 * step_s, step_s)
-    q, w = propagate_torque_free(np.array([1.0, 0, 0, 0]), w0, J, t)
-    ypr, _ = euler_from_matrix(matrix_from_quat(q), "321")
-    L = angular_momentum_N(q, w, J)
-    E = kinetic_energy(w, J)
+    h = tumble_history(J, w0, duration_s=duration_s, step_s=step_s)
     table = Table(title="torque-free target (q_NT, omega_T); Euler 3-2-1 of R_NT")
     for col in ("t (s)", "yaw (deg)", "pitch (deg)", "roll (deg)", "wx (deg/s)", "wy (deg/s)", "wz (deg/s)"):
         table.add_column(col, justify="right")
-    for k in range(t.size):
-        table.add_row(f"{t[k]:.1f}", *(f"{v:.3f}" for v in np.rad2deg(ypr[k])), *(f"{v:.4f}" for v in np.rad2deg(w[k])))
+    for k in range(h.t_s.size):
+        table.add_row(f"{h.t_s[k]:.1f}", *(f"{v:.3f}" for v in np.rad2deg(h.ypr_rad[k])),
+                      *(f"{v:.4f}" for v in np.rad2deg(h.omega_TN_T_rad_s[k])))
     console.print(table)
-    console.print(f"|L_N| drift: {np.abs(L - L[0]).max() / np.linalg.norm(L[0]):.1e} (relative); "
-                  f"energy drift: {np.abs(E - E[0]).max() / E[0]:.1e} (relative)")
+    console.print(f"|L_N| drift: {h.momentum_drift:.1e} (relative); "
+                  f"energy drift: {h.energy_drift:.1e} (relative)")

@@ -1,32 +1,32 @@
-"""``coobs filter-study``: the validation studies of ``filters`` (docs/filters.md, docs/reproduction.md).
+"""The validation studies of ``filters`` (docs/filters.md, docs/reproduction.md), run by ``coobs filter-study``.
 
 Runs, with the 003 settings (J = diag(1000, 800, 600) kg·m², Δt = 0.1 s, q₀ = [1, 0, 0, 0],
 ω₀ = 5°/s per axis, initial estimates from 003 eq (35) with σ_q = 0.1 and σ_ω = 0.1°/s):
 
 * ``expbc``       — Experiments B/C: both filters at 0.2° and 0.6°, fraction converged and median
-  convergence time under the §3.7 criterion, final errors, NEES against its 95 % band;
+  convergence time under the convergence criterion of :class:`filters.ConvergenceCriterion`,
+  final errors, NEES against its 95 % band;
 * ``thresholds``  — fraction converged for stricter attitude thresholds (why the paper can report
   non-convergence at 0.6°);
 * ``increments``  — registration increments in the rotating Hill frame (stochastic cloning), and
-  the naive chained absolute attitude of FLAG P003-14a for contrast;
+  the naive chained absolute attitude for contrast (flag P003-14a, docs/papers.md#p003-14a);
 * ``ratios``      — the inertia-ratio MEKF starting 30 % off, 120 s;
 * ``robust``      — the MEKF with 20 % of the time missing in 5 s gaps and 10 % gross outliers.
 
-Writes ``OUT/summary.json`` and figures ``OUT/figures/*.png``; prints tables.
+:func:`run_studies` returns the summary and writes the figures; the command prints the tables and
+writes ``OUT/summary.json``.
 """
 
 from __future__ import annotations
 
-import json
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import typer
-from rich.table import Table
 
 from attitude.rigid_body import propagate_torque_free
-from experiments.cli import app, console, fail
 from filters import (
     MEKF,
     AttitudeEKF,
@@ -42,6 +42,11 @@ RATIOS_TRUE = np.array([0.8, 0.6])
 DT_S = 0.1
 QUIET = ProcessNoise(attitude_psd_rad2_s=1e-14, rate_psd_rad2_s3=1e-14)
 STUDIES = ("expbc", "thresholds", "increments", "ratios", "robust")
+#: the convergence criterion of every study, in words (the summary's ``criterion``)
+CRITERION_TEXT = ("attitude < 0.5 deg and rate < 0.05 deg/s for the last 10 s "
+                  "(filters.ConvergenceCriterion)")
+
+__all__ = ["STUDIES", "J_KG_M2", "RATIOS_TRUE", "DT_S", "run_studies"]
 
 
 def _truth(duration_s: float):
@@ -219,75 +224,58 @@ def _plot_ratios(hist, figs: Path) -> None:
     plt.close(fig)
 
 
-# ----------------------------------------------------------------------------- command
+# ----------------------------------------------------------------------------- driver
 
-@app.command("filter-study")
-def filter_study(
-    out: Path = typer.Option(Path("runs/filter_study"), "--out", help="Output folder."),
-    trials: int = typer.Option(100, "--trials", help="Monte Carlo runs per case."),
-    seed: int = typer.Option(2026, "--seed", help="Parent seed (one stream per trial is spawned)."),
-    only: list[str] = typer.Option(None, "--only", help=f"Run only these studies: {', '.join(STUDIES)}."),
-    figures: bool = typer.Option(True, "--figures/--no-figures", help="Write PNG figures."),
-) -> None:
-    """Validate the attitude filters: 003 Experiments B/C, NEES consistency, cloning, inertia ratios, robustness."""
+
+def run_studies(selected: Sequence[str], *, trials: int, seed: int, fig_dir: Path | None,
+                on_study: Callable[[str, dict[str, Any]], None] | None = None) -> dict[str, Any]:
+    """Run the selected studies in the order of :data:`STUDIES`; returns the JSON-able summary.
+
+    Parameters
+    ----------
+    selected : sequence of str
+        Names from :data:`STUDIES` (``thresholds`` reuses the runs of ``expbc``).
+    trials : int
+        Monte Carlo runs per case (>= 2).
+    seed : int
+        Parent seed (one stream per trial is spawned).
+    fig_dir : Path, optional
+        Where PNG figures go (an existing folder); none when ``None``.
+    on_study : callable, optional
+        ``on_study(name, result)`` after each study (the command prints its table).
+
+    Returns
+    -------
+    dict
+        ``{"trials", "seed", "criterion", <study>: result, ...}``.
+
+    Raises
+    ------
+    ValueError
+        ``trials`` < 2 or an unknown study name.
+    """
     if trials < 2:
-        raise fail(f"--trials: need at least 2, got {trials}")
-    selected = only or list(STUDIES)
-    for s in selected:
-        if s not in STUDIES:
-            raise fail(f"--only: unknown study {s!r}; known: {', '.join(STUDIES)}")
-    figs = out / "figures" if figures else None
-    if figs is not None:
-        figs.mkdir(parents=True, exist_ok=True)
-    else:
-        out.mkdir(parents=True, exist_ok=True)
-    summary: dict = {"trials": trials, "seed": seed,
-                     "criterion": "attitude < 0.5 deg and rate < 0.05 deg/s for the last 10 s (SEEDS_SPEC 3.7)"}
+        raise ValueError(f"trials: need at least 2, got {trials}")
+    for name in selected:
+        if name not in STUDIES:
+            raise ValueError(f"selected: unknown study {name!r}; known: {', '.join(STUDIES)}")
+    summary: dict[str, Any] = {"trials": trials, "seed": seed, "criterion": CRITERION_TEXT}
+
+    def done(name: str, result: dict[str, Any]) -> None:
+        summary[name] = result
+        if on_study is not None:
+            on_study(name, result)
+
     expbc_results = None
     if "expbc" in selected or "thresholds" in selected:
-        summary["expbc"], expbc_results = _study_expbc(trials, seed, figs)
-        _table("Experiments B/C (absolute attitude, 60 s)", summary["expbc"],
-               ("fraction_converged", "median_convergence_time_s", "final_rms_attitude_error_deg",
-                "final_rms_rate_error_deg_s", "mean_nees_after", "nees_inside_fraction", "n_rejected"))
+        expbc, expbc_results = _study_expbc(trials, seed, fig_dir)
+        done("expbc", expbc)
     if "thresholds" in selected:
-        summary["thresholds"] = _study_thresholds(expbc_results)
-        flat = {k: {c: v["fraction_converged"] for c, v in row.items()}
-                for k, row in summary["thresholds"].items()}
-        _table("fraction converged vs threshold (spec Q)", flat, tuple(next(iter(flat.values())).keys()))
+        done("thresholds", _study_thresholds(expbc_results))
     if "increments" in selected:
-        summary["increments"] = _study_increments(trials, seed, figs)
-        _table("increments in H (cloning) vs chained absolute, 0.2 deg, 60 s", summary["increments"],
-               ("time_mean_nees_after_1s", "nees_inside_fraction", "final_rms_attitude_error_deg",
-                "final_rms_rate_error_deg_s", "n_rejected"))
+        done("increments", _study_increments(trials, seed, fig_dir))
     if "ratios" in selected:
-        summary["ratios"] = _study_ratios(trials, seed, figs)
-        _table("inertia-ratio MEKF, 0.2 deg, 120 s", summary["ratios"],
-               ("max_rel_error_60s", "max_rel_error_120s", "all_trials_within_1pct_from_s",
-                "fraction_converged", "n_failed"))
+        done("ratios", _study_ratios(trials, seed, fig_dir))
     if "robust" in selected:
-        summary["robust"] = _study_robust(trials, seed)
-        _table("20 % missing (5 s gaps) + 10 % outliers, 0.2 deg, 60 s", summary["robust"],
-               ("fraction_converged", "median_convergence_time_s", "n_outliers", "n_rejected",
-                "n_resets", "missing_fraction_measured", "n_failed"))
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
-    console.print(f"wrote {out / 'summary.json'}")
-
-
-def _fmt(v) -> str:
-    if isinstance(v, list | tuple):
-        return ", ".join(_fmt(x) for x in v)
-    if isinstance(v, float):
-        if np.isnan(v):
-            return "-"
-        return f"{v:.4g}"
-    return str(v)
-
-
-def _table(title: str, rows: dict, cols: tuple[str, ...]) -> None:
-    table = Table(title=title)
-    table.add_column("case")
-    for c in cols:
-        table.add_column(c)
-    for key, row in rows.items():
-        table.add_row(key, *(_fmt(row.get(c)) for c in cols))
-    console.print(table)
+        done("robust", _study_robust(trials, seed))
+    return summary

@@ -1,0 +1,5 @@
+"""``python -m experiments.cli``: the ``coobs`` command line."""
+
+from experiments.cli import main
+
+main()

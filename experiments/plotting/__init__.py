@@ -1,0 +1,25 @@
+"""Plot primitives and the generic sweep overview, drawn with matplotlib (Agg) from stored results."""
+
+from experiments.plotting.primitives import (
+    plot_band,
+    plot_cloud,
+    plot_histogram,
+    plot_image_tracks,
+    plot_map,
+    plot_time_series,
+    plot_timeline,
+    save,
+)
+from experiments.plotting.sweep_overview import sweep_overview_figures
+
+__all__ = [
+    "plot_map",
+    "plot_band",
+    "plot_time_series",
+    "plot_timeline",
+    "plot_image_tracks",
+    "plot_cloud",
+    "plot_histogram",
+    "save",
+    "sweep_overview_figures",
+]
