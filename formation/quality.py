@@ -24,6 +24,7 @@ most ``max_batch_views`` point-views (about 3·10⁵ point-views per second on o
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -31,6 +32,9 @@ from numpy.typing import ArrayLike
 from attitude.quaternion import matrix_from_quat, quat_from_rotvec
 from formation.geometry import look_at
 from reconstruction.accuracy import attitude_increment_crlb
+
+if TYPE_CHECKING:
+    from vision.camera import PinholeCamera
 
 __all__ = ["DEFAULT_INCREMENT_ROTVEC_H", "camera_poses_at_target", "crlb_score"]
 
@@ -66,7 +70,7 @@ def _check_camera(camera) -> tuple[np.ndarray, tuple[int, int] | None]:
 
 
 def crlb_score(
-    camera,
+    camera: PinholeCamera,
     points_H: ArrayLike,
     *,
     pixel_sigma_px: float,

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -34,7 +35,7 @@ __all__ = ["foreground_mask", "label_tracks", "observe", "observe_renders", "ren
 
 def render_views(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, target: Target,
                  q_HT: ArrayLike, sun_H: ArrayLike, *, rng: np.random.Generator | int | None = None,
-                 **render_options) -> list[RenderResult]:
+                 **render_options: Any) -> list[RenderResult]:
     """Render the n views of one epoch, each with its own independent noise stream.
 
     ``T_CW`` is ``(n, 4, 4)``; ``render_options`` go to :func:`vision.render.render`.
