@@ -8,19 +8,16 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.stats import chi2
 
+from attitude.batch import (
+    matrices_from_quaternions,
+    quaternion_conjugates,
+    quaternion_products,
+    rotvecs_from_quaternions,
+)
 from attitude.quaternion import quat_from_matrix
 from attitude.rigid_body import check_inertia
 
-from ._batch import (
-    as_batch,
-    conj,
-    inv3,
-    matrix_from_unit_quat,
-    positive_definite,
-    qmul,
-    rotvec,
-    sym,
-)
+from ._batch import as_batch, inv3, positive_definite, sym
 from .dynamics import _Inertia
 from .state import FAILURE_NON_FINITE, FAILURE_NOT_PD, FilterState, ProcessNoise
 
@@ -359,9 +356,9 @@ class AttitudeFilter(ABC):
         """ΔR_N = R_NH(now) ΔR_H R_NH(prev)ᵀ and the left-perturbation covariance in N."""
         q_now = quat_from_matrix(R_NH_now)
         q_prev = quat_from_matrix(R_NH_prev)
-        dq_N = qmul(qmul(q_now, dq_H), conj(q_prev))
+        dq_N = quaternion_products(quaternion_products(q_now, dq_H), quaternion_conjugates(q_prev))
         if cov_side == "right":
-            dR = matrix_from_unit_quat(dq_H)
+            dR = matrices_from_quaternions(dq_H)
             cov_H = dR @ cov_H @ dR.mT
         cov_N = R_NH_now @ cov_H @ R_NH_now.mT
         return dq_N, cov_N
@@ -379,7 +376,7 @@ class AttitudeFilter(ABC):
         qt = as_batch(np.asarray(q_NT_true, dtype=float), M, (4,), "q_NT_true")
         wt = as_batch(np.asarray(omega_TN_T_true, dtype=float), M, (3,), "omega_TN_T_true")
         q, w, _, _, p = self._sanitized(state)
-        a = rotvec(qmul(conj(q), qt))
+        a = rotvecs_from_quaternions(quaternion_products(quaternion_conjugates(q), qt))
         parts = [a, wt - w]
         if self.estimates_inertia_ratios:
             if inertia_ratios_true is None:

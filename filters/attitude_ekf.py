@@ -45,8 +45,16 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
+from attitude.batch import (
+    quaternion_conjugates,
+    quaternion_left_matrices,
+    quaternion_products,
+    quaternion_right_matrices,
+    xi_matrices,
+)
+
 from ._base import AttitudeFilter
-from ._batch import conj, left_matrix, qmul, right_matrix, sym, xi_matrix
+from ._batch import sym
 from .dynamics import _rk4
 from .noise_mapping import rotation_noise_moments
 from .state import FilterState, ProcessNoise
@@ -138,7 +146,7 @@ class AttitudeEKF(AttitudeFilter):
         q1, w1, F = _rk4(q, w, None, dt, self._inertia, 0, "quaternion", self.n_substeps)
         M, n = P.shape[0], P.shape[1]
         pn = self.process_noise
-        Xi = xi_matrix(q)
+        Xi = xi_matrices(q)
         Qc = np.zeros((M, 7, 7))
         Qc[:, :4, :4] = 0.25 * pn.attitude_psd_rad2_s * (Xi @ Xi.mT)
         Qc[:, 4:, 4:] = pn.rate_psd_rad2_s3 * np.eye(3)
@@ -172,9 +180,9 @@ class AttitudeEKF(AttitudeFilter):
         z, cov, valid = self._absolute_inputs(state, q_NT_meas, cov_rotvec_T)
         q, w, P, qc, _ = self._sanitized(state)
         z = np.where(np.sum(z * q, axis=1, keepdims=True) < 0, -z, z)
-        Lq = left_matrix(q)
+        Lq = quaternion_left_matrices(q)
         R4 = self._complete(Lq @ self._noise_moments(cov) @ Lq.mT, q)
-        G = 2.0 * xi_matrix(q).mT
+        G = 2.0 * xi_matrices(q).mT
         dx, Pn, acc, rej, nis = self._gated_update(P, z - q, None, R4, valid, G=G)
         return self._apply(state, q, w, qc, dx, Pn, acc, rej, nis)
 
@@ -207,13 +215,13 @@ class AttitudeEKF(AttitudeFilter):
         dqN, covN, valid = self._increment_inputs(state, dq_H, cov_rotvec_H, R_NH_prev, R_NH_now, cov_side)
         M = state.n_trials
         q, w, P, qc, _ = self._sanitized(state)
-        h = qmul(q, conj(qc))
+        h = quaternion_products(q, quaternion_conjugates(qc))
         z = np.where(np.sum(dqN * h, axis=1, keepdims=True) < 0, -dqN, dqN)
         H = np.zeros((M, 4, 11))
-        H[:, :, :4] = right_matrix(conj(qc))
-        H[:, :, 7:] = left_matrix(q) @ _CONJ_DIAG
+        H[:, :, :4] = quaternion_right_matrices(quaternion_conjugates(qc))
+        H[:, :, 7:] = quaternion_left_matrices(q) @ _CONJ_DIAG
         # the three rotational components of z − h: z ≈ h + ½ Rm(h)[:, 1:] v  ⇒  v ≈ G (z − h)
-        G = 2.0 * right_matrix(h)[:, :, 1:].mT
+        G = 2.0 * quaternion_right_matrices(h)[:, :, 1:].mT
         r3 = (G @ (z - h)[:, :, None])[:, :, 0]
         dx, Pn, acc, rej, nis = self._gated_update(P, r3, G @ H, covN, valid)
         new = self._apply(state, q, w, qc, dx, Pn, acc, rej, nis)
@@ -259,7 +267,7 @@ class AttitudeEKF(AttitudeFilter):
         q, _, P, _, _ = self._sanitized(state)
         M = state.n_trials
         Gm = np.zeros((M, 6, 7))
-        Gm[:, :3, :4] = 2.0 * xi_matrix(q).mT
+        Gm[:, :3, :4] = 2.0 * xi_matrices(q).mT
         Gm[:, 3:, 4:] = np.eye(3)
         C = sym(Gm @ P[:, :7, :7] @ Gm.mT)
         return np.where(state.failed[:, None, None], np.nan, C)

@@ -32,9 +32,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
+from attitude.batch import cross_product_matrices, omega_matrices, xi_matrices
 from attitude.rigid_body import check_inertia
-
-from ._batch import omega4, skew, xi_matrix
 
 __all__ = [
     "euler_rate_jacobian",
@@ -69,7 +68,7 @@ def euler_rate_jacobian(omega_TN_T: ArrayLike, J_kg_m2: ArrayLike) -> np.ndarray
     w = np.asarray(omega_TN_T, dtype=float)
     J = np.asarray(J_kg_m2, dtype=float)
     Jw = np.einsum("...ij,...j->...i", J, w)
-    return np.linalg.solve(J, skew(Jw) - skew(w) @ J)
+    return np.linalg.solve(J, cross_product_matrices(Jw) - cross_product_matrices(w) @ J)
 
 
 class _Inertia:
@@ -87,13 +86,13 @@ class _Inertia:
         """``(ω̇, A_ωω, A_ωp)``; ``j (M, 3)`` are per-trial principal moments (ratio filter)."""
         if j is None:
             j = self.diag
-        sk_w = skew(w)
+        sk_w = cross_product_matrices(w)
         if j is not None:
             Jw = w * j
             wdot = -(sk_w @ Jw[..., None])[..., 0] / j
             if not want_jac:
                 return wdot, None, None
-            Aww = (skew(Jw) - sk_w * j[..., None, :]) / j[..., :, None]
+            Aww = (cross_product_matrices(Jw) - sk_w * j[..., None, :]) / j[..., :, None]
             Awp = None
             if with_ratio_jac:
                 # ∂ω̇/∂p_i = J⁻¹(−ω × E_i ω − E_i ω̇), E_1 = diag(0, 1, 0), E_2 = diag(0, 0, 1)
@@ -106,7 +105,7 @@ class _Inertia:
         wdot = -(sk_w @ Jw[..., None])[..., 0] @ self.J_inv.T
         if not want_jac:
             return wdot, None, None
-        Aww = self.J_inv @ (skew(Jw) - sk_w @ self.J)
+        Aww = self.J_inv @ (cross_product_matrices(Jw) - sk_w @ self.J)
         return wdot, Aww, None
 
 
@@ -115,7 +114,7 @@ _EYE3 = np.eye(3)
 
 def _stage(q, w, j, inertia: _Inertia, kind: str | None, n_ratio: int):
     """Derivatives ``(q̇, ω̇)`` and the tangent matrix A at one RK4 stage."""
-    Xi = xi_matrix(q)
+    Xi = xi_matrices(q)
     qdot = 0.5 * (Xi @ w[..., None])[..., 0]
     wdot, Aww, Awp = inertia.rate(w, j, kind is not None, n_ratio > 0)
     if kind is None:
@@ -123,13 +122,13 @@ def _stage(q, w, j, inertia: _Inertia, kind: str | None, n_ratio: int):
     M = q.shape[0]
     if kind == "quaternion":
         A = np.zeros((M, 7, 7))
-        A[:, :4, :4] = 0.5 * omega4(w)
+        A[:, :4, :4] = 0.5 * omega_matrices(w)
         A[:, :4, 4:7] = 0.5 * Xi
         A[:, 4:7, 4:7] = Aww
         return qdot, wdot, A
     e = 6 + n_ratio
     A = np.zeros((M, e, e))
-    A[:, :3, :3] = -skew(w)
+    A[:, :3, :3] = -cross_product_matrices(w)
     A[:, :3, 3:6] = _EYE3
     A[:, 3:6, 3:6] = Aww
     if n_ratio:

@@ -30,8 +30,16 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
+from attitude.batch import (
+    cross_product_matrices,
+    matrices_from_quaternions,
+    quaternion_conjugates,
+    quaternion_products,
+    quaternions_from_rotvecs,
+    rotvecs_from_quaternions,
+)
+
 from ._base import AttitudeFilter
-from ._batch import conj, matrix_from_unit_quat, qexp_half, qmul, rotvec, skew
 from .dynamics import _rk4, inertia_ratios_from_inertia
 from .state import FilterState, ProcessNoise
 
@@ -136,7 +144,7 @@ class MEKF(AttitudeFilter):
         """
         z, cov, valid = self._absolute_inputs(state, q_NT_meas, cov_rotvec_T)
         q, w, P, qc, p = self._sanitized(state)
-        r = rotvec(qmul(conj(q), z))
+        r = rotvecs_from_quaternions(quaternion_products(quaternion_conjugates(q), z))
         dx, Pn, acc, rej, nis = self._gated_update(P, r, None, cov, valid)
         return self._apply(state, q, w, qc, p, dx, Pn, acc, rej, nis)
 
@@ -159,9 +167,9 @@ class MEKF(AttitudeFilter):
         dqN, covN, valid = self._increment_inputs(state, dq_H, cov_rotvec_H, R_NH_prev, R_NH_now, cov_side)
         M = state.n_trials
         q, w, P, qc, p = self._sanitized(state)
-        dq_hat = qmul(q, conj(qc))
-        r = rotvec(qmul(dqN, conj(dq_hat)))
-        R_hat = matrix_from_unit_quat(q)
+        dq_hat = quaternion_products(q, quaternion_conjugates(qc))
+        r = rotvecs_from_quaternions(quaternion_products(dqN, quaternion_conjugates(dq_hat)))
+        R_hat = matrices_from_quaternions(q)
         nc = self._n_core
         H = np.zeros((M, 3, nc + 3))
         H[:, :, :3] = R_hat
@@ -173,20 +181,20 @@ class MEKF(AttitudeFilter):
     def _apply(self, state, q, w, qc, p, dx, Pn, acc, rej, nis):
         nc = self._n_core
         da = dx[:, :3]
-        qn = qmul(q, qexp_half(da))
+        qn = quaternion_products(q, quaternions_from_rotvecs(da))
         qn /= np.sqrt(np.sum(qn * qn, 1, keepdims=True))
         wn = w + dx[:, 3:6]
         pn = None if p is None else p + dx[:, 6:8]
         n = Pn.shape[-1]
         G = np.zeros(Pn.shape)
         G[:] = np.eye(n)
-        G[:, :3, :3] -= 0.5 * skew(da)
+        G[:, :3, :3] -= 0.5 * cross_product_matrices(da)
         qcn = None
         if qc is not None:
             dac = dx[:, nc:nc + 3]
-            qcn = qmul(qc, qexp_half(dac))
+            qcn = quaternion_products(qc, quaternions_from_rotvecs(dac))
             qcn /= np.sqrt(np.sum(qcn * qcn, 1, keepdims=True))
-            G[:, nc:, nc:] -= 0.5 * skew(dac)
+            G[:, nc:, nc:] -= 0.5 * cross_product_matrices(dac)
         Pn = G @ Pn @ G.mT
         return self._finish(state, q=qn, w=wn, P=Pn, qc=qcn, p=pn, accepted=acc, rejected=rej,
                             nis=nis)

@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike
 
 from attitude.matrix import rot_z
 from attitude.quaternion import (
+    quat_conjugate,
     quat_from_matrix,
     quat_from_rotvec,
     quat_multiply,
@@ -38,7 +39,6 @@ from attitude.quaternion import (
 )
 
 from ._base import AttitudeFilter
-from ._batch import conj
 from .metrics import (
     ConvergenceCriterion,
     attitude_error_angle,
@@ -277,13 +277,13 @@ def simulate_measurements(t_s: ArrayLike, q_NT_true: ArrayLike, model: Measureme
         if model.kind == "absolute":
             z = quat_multiply(qi, dnoise)
         else:
-            q_HT = quat_multiply(conj(q_NH), qi)
-            dq_H = quat_multiply(q_HT[1:], conj(q_HT[:-1]))
+            q_HT = quat_multiply(quat_conjugate(q_NH), qi)
+            dq_H = quat_multiply(q_HT[1:], quat_conjugate(q_HT[:-1]))
             dq_H = quat_multiply(dnoise[1:], dq_H)  # left perturbation in H
             if model.kind == "increment":
                 z = np.concatenate([np.full((1, 4), np.nan), dq_H])
             else:  # chained_absolute: z_k = Δq_N ⊗ z_{k-1}, z_0 = q(t_0) (defines the body frame)
-                dq_N = quat_multiply(quat_multiply(q_NH[1:], dq_H), conj(q_NH[:-1]))
+                dq_N = quat_multiply(quat_multiply(q_NH[1:], dq_H), quat_conjugate(q_NH[:-1]))
                 z = np.empty((T, 4))
                 z[0] = qi[0]
                 for k in range(1, T):
@@ -512,7 +512,7 @@ def run_monte_carlo(
                                 criterion=criterion)
     bad = ~np.all(np.isfinite(q_est), -1)
     qs = np.where(bad[..., None], np.array([1.0, 0, 0, 0]), q_est)
-    a = rotvec_from_quat(quat_multiply(conj(qs), q_true))
+    a = rotvec_from_quat(quat_multiply(quat_conjugate(qs), q_true))
     err = [a, w_true - w_est]
     if ratios:
         err.append(np.asarray(inertia_ratios_true, dtype=float) - p_est)

@@ -25,7 +25,12 @@ import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints
 from numpy.typing import ArrayLike
 
-from ._batch import left_matrix, qexp_half, right_matrix, xi_matrix
+from attitude.batch import (
+    quaternion_left_matrices,
+    quaternion_right_matrices,
+    quaternions_from_rotvecs,
+    xi_matrices,
+)
 
 __all__ = ["UT_ALPHA", "UT_BETA", "UT_KAPPA", "sigma_point_weights", "quat_noise_covariance",
            "rotation_noise_moments",
@@ -104,7 +109,7 @@ def quat_noise_covariance(
     """
     q, cov = _check(q, cov_rotvec, side)
     m, C = rotation_noise_moments(cov, alpha=alpha, beta=beta, kappa=kappa)
-    Lq = left_matrix(q) if side == "right" else right_matrix(q)
+    Lq = quaternion_left_matrices(q) if side == "right" else quaternion_right_matrices(q)
     return (Lq @ m[..., None])[..., 0], Lq @ C @ np.swapaxes(Lq, -1, -2)
 
 
@@ -123,7 +128,7 @@ def rotation_noise_moments(cov_rotvec: ArrayLike, *, alpha: float = UT_ALPHA, be
     L = _sqrt_psd(cov * c)
     cols = np.swapaxes(L, -1, -2)  # rows: columns of L, as filterpy's rows of the upper factor
     e = np.concatenate([np.zeros(cols.shape[:-2] + (1, 3)), cols, -cols], -2)  # (..., 7, 3)
-    dq = qexp_half(e)
+    dq = quaternions_from_rotvecs(e)
     mean = Wm @ dq
     d = dq - mean[..., None, :]
     return mean, np.swapaxes(d, -1, -2) @ (Wc[:, None] * d)
@@ -145,5 +150,5 @@ def quat_noise_covariance_linear(q: ArrayLike, cov_rotvec: ArrayLike, *,
                                  side: Literal["right", "left"] = "right") -> np.ndarray:
     """First-order covariance ``¼ Ψ Σ Ψᵀ`` with ``Ψ = Ξ(q)`` (right) or ``Rm(q)[:, 1:]`` (left)."""
     q, cov = _check(q, cov_rotvec, side)
-    Psi = xi_matrix(q) if side == "right" else right_matrix(q)[..., :, 1:]
+    Psi = xi_matrices(q) if side == "right" else quaternion_right_matrices(q)[..., :, 1:]
     return 0.25 * Psi @ cov @ np.swapaxes(Psi, -1, -2)

@@ -7,6 +7,15 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from attitude import batch as B
+from attitude.quaternion import (
+    matrix_from_quat,
+    omega_matrix,
+    quat_conjugate,
+    quat_from_rotvec,
+    quat_multiply,
+    rotvec_from_quat,
+    skew,
+)
 from attitude.testing import assert_quat_equal
 from tests.attitude.strategies import unit_quats, vectors
 
@@ -144,3 +153,36 @@ def test_assert_quat_equal_ignores_the_sign_but_not_the_attitude():
         assert_quat_equal(q, B.quaternion_products(q, B.quaternions_from_rotvecs(np.array([1e-6, 0.0, 0.0]))), atol=1e-9)
     with pytest.raises(ValueError, match="expected: expected shape"):
         assert_quat_equal(q, q[:, :3])
+
+
+# --------------------------------------------------------------- kernels = validated doors
+@given(unit_quats(), unit_quats())
+def test_products_left_and_right_matrices_equal_hamilton_product(p, q):
+    ref = quat_multiply(p, q)
+    np.testing.assert_allclose(B.quaternion_products(p[None], q[None])[0], ref, atol=1e-15)
+    np.testing.assert_allclose(B.quaternion_left_matrices(p) @ q, ref, atol=1e-15)
+    np.testing.assert_allclose(B.quaternion_right_matrices(q) @ p, ref, atol=1e-15)
+    np.testing.assert_allclose(B.quaternion_conjugates(q), quat_conjugate(q), atol=0)
+
+
+@given(unit_quats(), vectors)
+def test_xi_omega_and_skew_match_003_eq26_and_cross_product(q, v):
+    np.testing.assert_allclose(B.xi_matrices(q) @ v, quat_multiply(q, np.r_[0.0, v]), atol=1e-14)
+    np.testing.assert_allclose(B.omega_matrices(v), omega_matrix(v), atol=0)
+    np.testing.assert_allclose(B.cross_product_matrices(v), skew(v), atol=0)
+    w = v[::-1] + 0.3
+    np.testing.assert_allclose((B.cross_product_matrices(v[None]) @ w[None, :, None])[0, :, 0], np.cross(v, w), atol=1e-14)
+
+
+@given(vectors)
+def test_rotvec_exp_and_log_are_inverse_and_match_attitude(v):
+    v = v * 0.99 * np.pi / max(np.linalg.norm(v), np.pi)  # angle below π: unique rotation vector
+    q = B.quaternions_from_rotvecs(v[None])[0]
+    np.testing.assert_allclose(q, quat_from_rotvec(v), atol=1e-15)
+    np.testing.assert_allclose(B.rotvecs_from_quaternions(q[None])[0], v, atol=1e-12)
+    np.testing.assert_allclose(B.rotvecs_from_quaternions(-q[None])[0], rotvec_from_quat(q), atol=1e-12)
+
+
+@given(unit_quats())
+def test_unit_quaternion_matrices_equal_attitude_matrix(q):
+    np.testing.assert_allclose(B.matrices_from_quaternions(q[None])[0], matrix_from_quat(q), atol=1e-14)

@@ -1,52 +1,10 @@
-"""The private batched kernels equal the validated rotation algebra of ``attitude`` (property tests)."""
+"""The filters' private batched linear algebra: adjugate inverse and positive-definiteness mask."""
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from attitude.quaternion import (
-    matrix_from_quat,
-    omega_matrix,
-    quat_conjugate,
-    quat_from_rotvec,
-    quat_multiply,
-    rotvec_from_quat,
-    skew,
-)
 from filters import _batch as kb
-from tests.attitude.strategies import unit_quats, vectors
-
-
-@given(unit_quats(), unit_quats())
-def test_qmul_left_and_right_matrices_equal_hamilton_product(p, q):
-    ref = quat_multiply(p, q)
-    np.testing.assert_allclose(kb.qmul(p[None], q[None])[0], ref, atol=1e-15)
-    np.testing.assert_allclose(kb.left_matrix(p) @ q, ref, atol=1e-15)
-    np.testing.assert_allclose(kb.right_matrix(q) @ p, ref, atol=1e-15)
-    np.testing.assert_allclose(kb.conj(q), quat_conjugate(q), atol=0)
-
-
-@given(unit_quats(), vectors)
-def test_xi_omega_and_skew_match_003_eq26_and_cross_product(q, v):
-    np.testing.assert_allclose(kb.xi_matrix(q) @ v, quat_multiply(q, np.r_[0.0, v]), atol=1e-14)
-    np.testing.assert_allclose(kb.omega4(v), omega_matrix(v), atol=0)
-    np.testing.assert_allclose(kb.skew(v), skew(v), atol=0)
-    w = v[::-1] + 0.3
-    np.testing.assert_allclose(kb.cross(v[None], w[None])[0], np.cross(v, w), atol=1e-14)
-
-
-@given(vectors)
-def test_qexp_half_and_rotvec_are_inverse_and_match_attitude(v):
-    v = v * 0.99 * np.pi / max(np.linalg.norm(v), np.pi)  # angle below π: unique rotation vector
-    q = kb.qexp_half(v[None])[0]
-    np.testing.assert_allclose(q, quat_from_rotvec(v), atol=1e-15)
-    np.testing.assert_allclose(kb.rotvec(q[None])[0], v, atol=1e-12)
-    np.testing.assert_allclose(kb.rotvec(-q[None])[0], rotvec_from_quat(q), atol=1e-12)
-
-
-@given(unit_quats())
-def test_matrix_from_unit_quat_equals_attitude_matrix(q):
-    np.testing.assert_allclose(kb.matrix_from_unit_quat(q[None])[0], matrix_from_quat(q), atol=1e-14)
 
 
 @settings(max_examples=50)
