@@ -63,10 +63,12 @@ class ReconfigurationPlan:
         ``"keep_out"`` (m, K) in m, ``"separation"`` (P, K) in m for every pair (moving–moving and
         moving–fixed), ``"dv_limit"`` (m, M) in m/s, ``"final_state"`` (m,) residual norm.
         Positive (or ~0 for the final state) means satisfied.
-    status : str
-        IPOPT's return status.
-    success : bool
+    ok : bool
         Solver success and every margin satisfied on the fine grid.
+    failure_reason : str
+        Empty when ``ok``, else why the plan is not usable (solver status or violated constraints).
+    solver_status : str
+        IPOPT's return status of the last solve.
     solve_time_s : float
         Wall time of the whole plan (all refinement rounds).
     rounds : int
@@ -81,8 +83,9 @@ class ReconfigurationPlan:
     t_grid_s: np.ndarray
     trajectory_H: np.ndarray
     margins: dict[str, np.ndarray]
-    status: str
-    success: bool
+    ok: bool
+    failure_reason: str
+    solver_status: str
     solve_time_s: float
     rounds: int
 
@@ -355,12 +358,23 @@ def plan(
         dv, status = _solve(x0, slots, nodes, tf_s, n, dv_max_m_s, dv, lin)
         rounds += 1
     solved = status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
-    ok = solved and _violations(margins, fine).size == 0 and np.all(margins["final_state"] < 1e-6)
+    n_bad = _violations(margins, fine).size
+    arrived = bool(np.all(margins["final_state"] < 1e-6))
+    ok = solved and n_bad == 0 and arrived
+    if not solved:
+        reason = f"IPOPT did not solve the problem ({status})"
+    elif n_bad:
+        reason = (f"keep-out or separation violated at {n_bad} instants of the {check_step_s} s "
+                  f"check grid after {rounds} solves")
+    elif not arrived:
+        reason = "final state misses the slot state by more than 1e-6"
+    else:
+        reason = ""
     per = np.sum(np.linalg.norm(dv, axis=-1), axis=-1)
     return ReconfigurationPlan(
         assignment=assignment, impulse_times_s=nodes, impulses_H=dv, dv_per_spacecraft_m_s=per,
-        dv_total_m_s=float(per.sum()), t_grid_s=fine, trajectory_H=traj, margins=margins, status=status,
-        success=bool(ok), solve_time_s=time.perf_counter() - t_start, rounds=rounds,
+        dv_total_m_s=float(per.sum()), t_grid_s=fine, trajectory_H=traj, margins=margins, ok=bool(ok),
+        failure_reason=reason, solver_status=status, solve_time_s=time.perf_counter() - t_start, rounds=rounds,
     )
 
 

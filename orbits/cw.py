@@ -189,7 +189,7 @@ class TwoImpulseTransfer:
     ok : ndarray of bool, shape (...)
         False where the transfer time makes the position-from-velocity block Φ_rv singular
         (e.g. whole periods), so no unique transfer exists.
-    reason : str
+    failure_reason : str
         Empty when every transfer is ``ok``, else what went wrong.
     """
 
@@ -197,7 +197,7 @@ class TwoImpulseTransfer:
     dvf_H: np.ndarray
     total_dv_m_s: np.ndarray
     ok: np.ndarray
-    reason: str = ""
+    failure_reason: str = ""
 
 
 def two_impulse_transfer(x0_H: ArrayLike, xf_H: ArrayLike, tof_s: ArrayLike, n: float, *,

@@ -18,7 +18,7 @@ def planned():
     movers, slot_of = choose_movers(s.x0_H, slots, tf, s.n)
     others = np.setdiff1d(np.arange(6), movers)
     p = plan(s.x0_H[movers], slots[slot_of], n=s.n, tf_s=tf, assign=False, others_x0_H=s.x0_H[others])
-    assert p.success, p.status
+    assert p.ok, p.failure_reason
     return s, s.x0_H[movers], slots[slot_of], p
 
 

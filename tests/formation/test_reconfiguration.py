@@ -27,7 +27,7 @@ def test_plan_brings_three_into_a_valid_3_view_geometry_within_one_orbit(scenari
     others = np.setdiff1d(np.arange(6), movers)
     p = plan(s.x0_H[movers], slots[slot_of], n=s.n, tf_s=tf, assign=False, n_impulses=6,
              dv_max_m_s=1.0, keep_out_radius_m=20.0, min_separation_m=5.0, others_x0_H=s.x0_H[others])
-    assert p.success, p.status
+    assert p.ok, p.failure_reason
     # every path constraint on the 1 s grid, the Δv limit at every impulse, the final states
     assert np.diff(p.t_grid_s).max() <= 1.0 + 1e-9 and p.t_grid_s[-1] == pytest.approx(tf, abs=1.0)
     assert p.margins["keep_out"].min() >= -1e-6
@@ -59,7 +59,7 @@ def test_binding_keep_out_is_respected_on_the_fine_grid(scenario):
     slots = drift_free_slot_states(s.slots.r_CT_H, n)
     tf = 0.3 * s.period_s
     p = plan(x0, slots, n=n, tf_s=tf, n_impulses=8, dv_max_m_s=0.5, keep_out_radius_m=20.0, min_separation_m=5.0)
-    assert p.success, p.status
+    assert p.ok, p.failure_reason
     assert p.margins["keep_out"].min() >= -1e-6 and p.margins["separation"].min() >= -1e-6
     lb = lower_bound(x0, slots[p.assignment], n=n, tf_s=tf, n_impulses=8, dv_max_m_s=0.5)
     assert lb * (1 - 1e-9) <= p.dv_total_m_s <= 1.05 * lb

@@ -123,7 +123,7 @@ def test_two_impulse_transfer_reaches_target_state():
     xf = cw.natural_motion_circumnavigation(40.0, n=N, phase_rad=rng.uniform(0, 6, 10))
     tof = rng.uniform(600, 3000, 10)
     tr = cw.two_impulse_transfer(x0, xf, tof, N)
-    assert np.all(tr.ok) and tr.reason == ""
+    assert np.all(tr.ok) and tr.failure_reason == ""
     for k in range(10):
         x1 = cw.apply_impulse(x0[k], tr.dv0_H[k])
         xa = cw.propagate(x1, tof[k], N)[0]
@@ -135,7 +135,7 @@ def test_two_impulse_transfer_reports_singular_time():
                                  np.array([PERIOD_S, 0.3 * PERIOD_S]), N)
     assert list(tr.ok) == [False, True]
     assert np.isnan(tr.total_dv_m_s[0]) and np.isfinite(tr.total_dv_m_s[1])
-    assert "singular" in tr.reason
+    assert "singular" in tr.failure_reason
 
 
 @pytest.mark.parametrize("cross_track_m", [0.0, 25.0, 50.0])
