@@ -8,6 +8,7 @@ output, never an exception), because the public functions run inside sweeps.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__: list[str] = []
 
@@ -19,7 +20,7 @@ def scalar_or_array(a: np.ndarray) -> object:
 
 
 # --------------------------------------------------------------------------- input checks
-def as_float(a, name: str) -> np.ndarray:
+def as_float(a: ArrayLike, name: str) -> np.ndarray:
     try:
         arr = np.asarray(a, dtype=float)
     except (TypeError, ValueError) as exc:  # pragma: no cover - message path
@@ -27,7 +28,7 @@ def as_float(a, name: str) -> np.ndarray:
     return arr
 
 
-def check_intrinsics(K, name: str = "K") -> np.ndarray:
+def check_intrinsics(K: ArrayLike, name: str = "K") -> np.ndarray:
     """``(..., n, 3, 3)`` upper-triangular pinhole matrices with last row ``[0, 0, 1]``."""
     K = as_float(K, name)
     if K.ndim < 3 or K.shape[-2:] != (3, 3):
@@ -42,7 +43,7 @@ def check_intrinsics(K, name: str = "K") -> np.ndarray:
     return K
 
 
-def check_poses(T_CW, name: str = "T_CW") -> np.ndarray:
+def check_poses(T_CW: ArrayLike, name: str = "T_CW") -> np.ndarray:
     """``(..., n, 4, 4)`` camera-from-world rigid transforms."""
     T = as_float(T_CW, name)
     if T.ndim < 3 or T.shape[-2:] != (4, 4):
@@ -58,7 +59,7 @@ def check_poses(T_CW, name: str = "T_CW") -> np.ndarray:
     return T
 
 
-def check_positive(x, name: str) -> np.ndarray:
+def check_positive(x: ArrayLike, name: str) -> np.ndarray:
     arr = as_float(x, name)
     if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
         raise ValueError(f"{name}: must be finite and > 0, got {x!r}")
@@ -72,7 +73,7 @@ def check_probability(p: float, name: str) -> float:
     return p
 
 
-def check_points(X, name: str, *, allow_nan: bool = True, scan: bool = True) -> np.ndarray:
+def check_points(X: ArrayLike, name: str, *, allow_nan: bool = True, scan: bool = True) -> np.ndarray:
     """``(..., N, 3)`` points; ``scan=False`` skips the value scan (the caller detects infinities
     in the problems whose moments come out non-finite)."""
     X = as_float(X, name)
@@ -85,7 +86,7 @@ def check_points(X, name: str, *, allow_nan: bool = True, scan: bool = True) -> 
     return X
 
 
-def check_covariances(C, name: str, points_shape: tuple[int, ...]) -> np.ndarray:
+def check_covariances(C: ArrayLike, name: str, points_shape: tuple[int, ...]) -> np.ndarray:
     C = as_float(C, name)
     if C.shape[-2:] != (3, 3):
         raise ValueError(f"{name}: expected shape (..., n_points, 3, 3), got {C.shape}")
@@ -130,7 +131,8 @@ def sym3_inv(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def proper_rotation_from_svd(B: np.ndarray) -> np.ndarray:
     """``U diag(1, 1, det(U Vᵀ)) Vᵀ`` of ``B = U D Vᵀ``: the rotation maximising ``tr(Rᵀ B)``.
 
-    000 eq (36)–(37) with the corrections of SEEDS_SPEC FLAG P000-10 (c, d); NaN input gives NaN.
+    000 eq (36)–(37) with the corrections (c), (d) of flag P000-10 (docs/papers.md#p000-10); NaN
+    input gives NaN.
     """
     bad = ~np.all(np.isfinite(B), axis=(-2, -1))
     if np.any(bad):

@@ -1,6 +1,6 @@
 """Private synthetic scenes for the reconstruction tests, benchmarks and the accuracy study.
 
-A small stand-in for ``formation.geometry.symmetric_views`` (003 §3.1 / SEEDS_SPEC §3.6) and for
+A small stand-in for ``formation.geometry.symmetric_views`` (the camera ring of 003 §3.1) and for
 the geometric observation mode of ``vision``, which other packages own: cameras on a cone around
 the target at a given distance and pairwise optical-axis angle, an FY-1-like point set (1.4 m
 bus, two 1.4 m × 3 m wings), pinhole projection with Gaussian pixel noise.  No occlusion.
@@ -23,7 +23,7 @@ __all__: list[str] = []
 def ring_cameras(n_views: int, *, distance_m: float, axis_angle_deg: float,
                  image_px: int = 1024, fov_deg: float = 20.0) -> tuple[np.ndarray, np.ndarray]:
     """Cameras on a cone about +z of W, all aimed at the origin, adjacent axes ``axis_angle_deg``
-    apart (``cos γ = cos²φ + sin²φ cos(2π/n)``; SEEDS_SPEC §3.6 for n = 2, 3).
+    apart (``cos γ = cos²φ + sin²φ cos(2π/n)``, which is ``cos γ = 1 − (3/2) sin²φ`` for n = 3).
 
     Returns ``K (n, 3, 3)`` and ``T_CW (n, 4, 4)``.
     """
@@ -50,7 +50,8 @@ def ring_cameras(n_views: int, *, distance_m: float, axis_angle_deg: float,
     return np.array(Ks), np.array(Ts)
 
 
-def fy1_points(n_points: int, rng, *, batch: tuple[int, ...] = ()) -> np.ndarray:
+def fy1_points(n_points: int, rng: np.random.Generator | int | None, *,
+               batch: tuple[int, ...] = ()) -> np.ndarray:
     """Points on an FY-1-like body in T: half on a 1.4 m cube bus, half on two wings
     (x ∈ ±0.7 m, |y| ∈ [0.8, 3.8] m, z = 0).  Shape ``batch + (n_points, 3)``."""
     rng = np.random.default_rng(rng)
@@ -73,7 +74,8 @@ def fy1_points(n_points: int, rng, *, batch: tuple[int, ...] = ()) -> np.ndarray
     return np.where(on_bus[..., None], bus, wing)
 
 
-def observe(X_W, K, T_CW, sigma_px, rng):
+def observe(X_W: np.ndarray, K: np.ndarray, T_CW: np.ndarray, sigma_px: float,
+            rng: np.random.Generator | int | None) -> np.ndarray:
     """Noisy pixel observations ``(..., M, n, 2)`` of points ``(..., M, 3)`` (no occlusion)."""
     rng = np.random.default_rng(rng)
     uv, _, _ = project(X_W[..., :, None, :], K[..., None, :, :, :], T_CW[..., None, :, :, :])
@@ -116,7 +118,8 @@ class StudyResult:
 def accuracy_study(*, n_views: int, n_trials: int, n_points: int = 200, distance_m: float = 50.0,
                    axis_angle_deg: float = 10.0, image_px: int = 1024, fov_deg: float = 20.0,
                    sigma_px: float = 0.5, increment_deg: float = 0.5 * np.sqrt(3),
-                   outlier_fraction: float = 0.3, rng=None, band: float = 0.95) -> StudyResult:
+                   outlier_fraction: float = 0.3,
+                   rng: np.random.Generator | int | None = None, band: float = 0.95) -> StudyResult:
     """The done-when study of issue 6: triangulation NEES, ML vs CRLB vs scalar-weighted fit,
     robust fit with false matches (added to the true ones, and replacing some of them)."""
     from reconstruction.accuracy import attitude_increment_crlb
@@ -146,7 +149,7 @@ def accuracy_study(*, n_views: int, n_trials: int, n_points: int = 200, distance
     m = nees.size
     lo, hi = (_chi2.ppf((1 - band) / 2, 3 * m) / m, _chi2.ppf(1 - (1 - band) / 2, 3 * m) / m)
 
-    def err_rms(R_hat):
+    def err_rms(R_hat: np.ndarray) -> tuple[float, np.ndarray]:
         e = rotvecs_from_matrices(dR @ np.swapaxes(R_hat, -1, -2))
         return float(np.degrees(np.sqrt(np.nanmean(np.sum(e * e, -1))))), e
 
@@ -161,7 +164,7 @@ def accuracy_study(*, n_views: int, n_trials: int, n_points: int = 200, distance
     crlb = attitude_increment_crlb(X0, K, T, pixel_sigma_px=sigma_px, R_delta=dR)
     crlb_rms = float(np.degrees(np.sqrt(np.mean(crlb.rms_angle_rad**2))))
 
-    # --- the paper's scalar-weighted fit (003 eq 12–13 with FLAG P003-4 weights)
+    # --- the paper's scalar-weighted fit (003 eq 12–13 with the weights of flag P003-4)
     w = 1.0 / (0.5 * (tri0.rms_reprojection_px + tri1.rms_reprojection_px) + 0.1)
     sc = fit_rigid(tri0.X_W, tri1.X_W, np.where(np.isfinite(w), w, 0.0))
     sc_rms, _ = err_rms(sc.R)

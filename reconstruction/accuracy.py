@@ -1,6 +1,6 @@
 """Predicted accuracy: Cramér–Rao bounds of triangulated points and of the attitude increment.
 
-Model (the geometric observation mode of ARCHITECTURE §3): M surface points are seen, with
+Model (the geometric observation mode of ``vision.geometric``): M surface points are seen, with
 independent Gaussian pixel noise of σ px per coordinate, by calibrated cameras at epoch t and again
 at t + Δt after the target moved rigidly, ``X' = ΔR X + Δt``.  The unknowns are the motion
 ``ξ = [δθ, δt]`` and the M point positions (the target is non-cooperative: no model).  The Fisher
@@ -23,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from attitude.batch import cross_product_matrices
 from reconstruction._geometry import (
@@ -121,7 +122,8 @@ def _check_common(X_W, K, T_CW, pixel_sigma_px, visible, image_size):
     return X, K, T, sigma, vis, batch
 
 
-def point_covariance(X_W, K, T_CW, *, pixel_sigma_px, visible=None,
+def point_covariance(X_W: ArrayLike, K: ArrayLike, T_CW: ArrayLike, *, pixel_sigma_px: ArrayLike,
+                     visible: ArrayLike | None = None,
                      image_size: tuple[int, int] | None = None) -> np.ndarray:
     """Cramér–Rao bound of each point's triangulated position, ``(Σ_k J_kᵀ J_k / σ²)⁻¹``.
 
@@ -153,8 +155,10 @@ def point_covariance(X_W, K, T_CW, *, pixel_sigma_px, visible=None,
     return np.where((np.sum(vis, -1) >= 2)[..., None, None], C, np.nan)
 
 
-def attitude_increment_crlb(X_W, K, T_CW, *, pixel_sigma_px, visible=None, R_delta=None,
-                            t_delta=None, K_next=None, T_CW_next=None,
+def attitude_increment_crlb(X_W: ArrayLike, K: ArrayLike, T_CW: ArrayLike, *,
+                            pixel_sigma_px: ArrayLike, visible: ArrayLike | None = None,
+                            R_delta: ArrayLike | None = None, t_delta: ArrayLike | None = None,
+                            K_next: ArrayLike | None = None, T_CW_next: ArrayLike | None = None,
                             image_size: tuple[int, int] | None = None) -> AttitudeIncrementBound:
     """Cramér–Rao lower bound of the attitude increment between two epochs (see module doc).
 

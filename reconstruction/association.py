@@ -1,12 +1,12 @@
-"""Inter-frame association of triangulated tracks (003 §1.5, SEEDS_SPEC §3.3.4).
+"""Inter-frame association of triangulated tracks (003 eq (9)–(10)).
 
 Between epochs t and t + Δt, each camera in turn is the *primary*: its features are matched
-across the two epochs by descriptor (nearest neighbour with the ratio test, 003 §3.3.2 criterion,
-λ = 0.6), and a match is kept only if it is *consistent in the auxiliary views*: in every other
+across the two epochs by descriptor (nearest neighbour with the ratio test of 003's intra-frame
+match criterion, λ = 0.6), and a match is kept only if it is *consistent in the auxiliary views*: in every other
 view that sees the track at both epochs, the same descriptor match must hold.  The matches of all
 primaries are merged (pairs claimed inconsistently by two primaries are dropped), the camera
-weights are updated by 003 eq (9) normalised per FLAG P003-5, and near-duplicate correspondences
-are removed by the per-epoch AND test of FLAG P003-6, keeping the one with the smaller residual.
+weights are updated by 003 eq (9) normalised per flag P003-5 (docs/papers.md#p003-5), and near-duplicate correspondences
+are removed by the per-epoch AND test of flag P003-6 (docs/papers.md#p003-6), keeping the one with the smaller residual.
 
 Descriptor matching uses OpenCV's brute-force L2 nearest-neighbour search (``cv2.batchDistance``,
 the kernel and selection behind ``cv2.BFMatcher.knnMatch``, returning arrays); with one
@@ -17,10 +17,16 @@ bookkeeping are numpy index-array operations over all tracks at once.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from reconstruction._geometry import as_float, check_positive
+
+if TYPE_CHECKING:
+    from reconstruction.triangulation import Triangulation
+    from vision.observation import Observation
 
 __all__ = ["Association", "camera_weights_from_counts", "associate",
            "associate_from_observations"]
@@ -37,13 +43,13 @@ class Association:
     n_per_primary : ndarray (n,) int
         N_ρ,k of 003 eq (9): consistent matches found with camera k as primary.
     camera_weights : ndarray (n,)
-        W_k of 003 eq (9) with FLAG P003-5 (sums to 1); use them at the next frame pair.
+        W_k of 003 eq (9) with flag P003-5 (sums to 1); use them at the next frame pair.
     n_conflicts_removed : int
         Pairs dropped because two primaries disagreed.
     n_duplicates_removed : int
-        Pairs dropped as near-duplicates (FLAG P003-6).
+        Pairs dropped as near-duplicates (flag P003-6).
     ok : bool
-        At least 3 correspondences (the minimum of a rigid fit, FLAG P003-8).
+        At least 3 correspondences (the minimum of a rigid fit, flag P003-8, docs/papers.md#p003-8).
     failure_reason : str
     """
 
@@ -57,8 +63,8 @@ class Association:
     failure_reason: str
 
 
-def camera_weights_from_counts(n_per_primary) -> np.ndarray:
-    """003 eq (9) with FLAG P003-5: ``W_k = (1 + N_ρ,k) / (N_cam + Σ_j N_ρ,j)``; sums to 1.
+def camera_weights_from_counts(n_per_primary: ArrayLike) -> np.ndarray:
+    """003 eq (9) with flag P003-5 (docs/papers.md#p003-5): ``W_k = (1 + N_ρ,k) / (N_cam + Σ_j N_ρ,j)``; sums to 1.
 
     Parameters
     ----------
@@ -162,8 +168,10 @@ def _check_views_desc(views, desc, name):
     return v, d
 
 
-def associate(views_prev, descriptors_prev, views_next, descriptors_next, *, X_prev=None,
-              X_next=None, residual_prev=None, residual_next=None, ratio: float = 0.6,
+def associate(views_prev: ArrayLike, descriptors_prev: ArrayLike, views_next: ArrayLike,
+              descriptors_next: ArrayLike, *, X_prev: ArrayLike | None = None,
+              X_next: ArrayLike | None = None, residual_prev: ArrayLike | None = None,
+              residual_next: ArrayLike | None = None, ratio: float = 0.6,
               duplicate_distance_m: float = 0.05, min_matches: int = 3) -> Association:
     """Associate the tracks of two epochs (003 §1.5), with camera weights and de-duplication.
 
@@ -180,10 +188,10 @@ def associate(views_prev, descriptors_prev, views_next, descriptors_next, *, X_p
         Point residuals W_ρ (``Triangulation.rms_reprojection_px``); of two duplicates the one
         with the smaller mean residual (003 eq 13) is kept.  Default: keep the first.
     ratio : float
-        Nearest-neighbour ratio λ (003 §3.3.2: 0.6).
+        Nearest-neighbour ratio λ (003's intra-frame match criterion: 0.6).
     duplicate_distance_m : float
-        ε_d of FLAG P003-6: two correspondences closer than this at both epochs are duplicates
-        (SEEDS_SPEC §3.7: about twice the triangulation σ, 0.05 m at 50 m).
+        ε_d of flag P003-6 (docs/papers.md#p003-6): two correspondences closer than this at both
+        epochs are duplicates (about twice the triangulation σ: 0.05 m at 50 m).
     min_matches : int
         Fewer correspondences than this give ``ok=False``.
 
@@ -297,7 +305,9 @@ def associate(views_prev, descriptors_prev, views_next, descriptors_next, *, X_p
     )
 
 
-def associate_from_observations(obs_prev, obs_next, tri_prev, tri_next, **options) -> Association:
+def associate_from_observations(obs_prev: Observation, obs_next: Observation,
+                                tri_prev: Triangulation, tri_next: Triangulation,
+                                **options: Any) -> Association:
     """:func:`associate` on two ``vision.observation.Observation`` s and their triangulations
     (:class:`reconstruction.triangulation.Triangulation`); ``options`` are passed on."""
     return associate(

@@ -1,16 +1,17 @@
 """Multi-view triangulation with per-point covariance (003 §1.4, eq (4)–(8)).
 
 The paper's weighted algebraic least squares (003 eq 4–6) is solved as the standard homogeneous
-DLT on normalised image coordinates (flag P003-3 d, docs/papers.md#p003-3), then refined by
+DLT on normalised image coordinates (flag P003-3 (d), docs/papers.md#p003-3), then refined by
 Gauss–Newton on
 the reprojection error in pixels, which is the maximum-likelihood estimate under Gaussian pixel
 noise.  The inverse Gauss–Newton information is the point's 3×3 covariance (first order; it equals
 the Cramér–Rao bound of :func:`reconstruction.accuracy.point_covariance` at the estimate).
 
-The paper's point "confidence" W_ρ (003 eq 7) is an algebraic residual; following FLAG P003-3 it
+The paper's point "confidence" W_ρ (003 eq 7) is an algebraic residual; following flag P003-3 it
 is reported here as the RMS reprojection error in pixels (``rms_reprojection_px``), and the
 rejection test of 003 eq (8) becomes a chi-square gate on the normalised reprojection residual
-(plus an optional pixel threshold ε_ρ).  FLAG P003-4: W_ρ is a residual, so a registration weight
+(plus an optional pixel threshold ε_ρ).  Flag P003-4 (docs/papers.md#p003-4): W_ρ is a
+residual, so a registration weight
 must decrease with it (``1 / (W_ρ + ε₀)``); better, use the covariance.
 
 Everything is vectorised over leading batch axes (trials, epochs) and over points: a batch of
@@ -21,9 +22,10 @@ Everything is vectorised over leading batch axes (trials, epochs) and over point
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.stats import chi2 as _chi2
 
 from reconstruction._geometry import (
@@ -91,7 +93,7 @@ class Triangulation:
         Number of views used.
     rms_reprojection_px : ndarray (..., M)
         Weighted RMS over the used views of the 2-D reprojection residual, px: the point
-        residual W_ρ of 003 eq (7) in the form of FLAG P003-3.  Small means confident.
+        residual W_ρ of 003 eq (7) in the form of flag P003-3.  Small means confident.
     chi2 : ndarray (..., M)
         Sum of squared normalised reprojection residuals (``dof = 2 n_views − 3``).
     n_valid : ndarray (...,) int
@@ -116,7 +118,7 @@ class Triangulation:
 
     @property
     def weight(self) -> np.ndarray:
-        """Scalar point weight ``1 / (W_ρ + 0.1 px)`` of FLAG P003-4 (0 for invalid points)."""
+        """Scalar point weight ``1 / (W_ρ + 0.1 px)`` of flag P003-4 (docs/papers.md#p003-4; 0 for invalid points)."""
         return np.where(self.valid, 1.0 / (np.nan_to_num(self.rms_reprojection_px) + 0.1), 0.0)
 
 
@@ -128,7 +130,7 @@ def _solve(uv: np.ndarray, w: np.ndarray, K: np.ndarray, T: np.ndarray, Kinv: np
     ``w`` is ``(..., n)``: camera weight / σ², 0 for absent views.  Returns the point, its
     information matrix, its inverse and determinant, the residuals ``(..., n, 2)`` and the depths ``(..., n)``.
     """
-    # --- DLT on normalised coordinates (003 eq 4–6, FLAG P003-3 d): rows x·P3 − P1, y·P3 − P2
+    # --- DLT on normalised coordinates (003 eq 4–6, flag P003-3 (d)): rows x·P3 − P1, y·P3 − P2
     hom = np.concatenate([uv, np.ones(uv.shape[:-1] + (1,))], -1)
     xn = (Kinv @ hom[..., None])[..., 0]
     x = xn[..., 0] / xn[..., 2]
@@ -181,12 +183,13 @@ def _cloud_reason(code: np.ndarray) -> np.ndarray:
     return out.astype(str)
 
 
-def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
+def triangulate(uv_px: ArrayLike, K: ArrayLike, T_CW: ArrayLike, *, pixel_sigma_px: ArrayLike,
+                camera_weights: ArrayLike | None = None,
                 gate_probability: float = 0.999, max_rms_reprojection_px: float | None = None,
                 drop_worst_view: bool = True, iterations: int = 8) -> Triangulation:
     """Triangulate tracks seen in 2..n calibrated views, with covariance and outlier rejection.
 
-    For each track the normalised DLT (003 eq 4–6 per FLAG P003-3) gives a start point that
+    For each track the normalised DLT (003 eq 4–6 per flag P003-3, docs/papers.md#p003-3) gives a start point that
     Gauss–Newton refines to the minimum of the weighted reprojection error
 
     .. math:: J(\\rho) = \\sum_k \\frac{W_k}{\\sigma^2} \\lVert \\pi(K_k M_k \\rho) - p_k \\rVert^2 ,
@@ -218,7 +221,7 @@ def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
     gate_probability : float
         Chi-square gate on the reprojection residual; ``0.999`` rejects 0.1 % of good points.
     max_rms_reprojection_px : float, optional
-        The paper's threshold ε_ρ on W_ρ (003 eq 8, FLAG P003-3 suggests 2 px), applied in
+        The paper's threshold ε_ρ on W_ρ (003 eq 8; flag P003-3 suggests 2 px), applied in
         addition to the chi-square gate.
     drop_worst_view : bool
         Retry rejected points seen in ≥ 3 views without their largest-residual view.
@@ -272,7 +275,8 @@ def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
     T_b = np.broadcast_to(T, batch + (n, 4, 4))[..., None, :, :, :]
     Kinv_b = np.linalg.inv(K_b)
 
-    def run(use: np.ndarray, uv_in, Kx, Tx, Kix, cwx, sx):
+    def run(use: np.ndarray, uv_in: np.ndarray, Kx: np.ndarray, Tx: np.ndarray, Kix: np.ndarray,
+            cwx: np.ndarray, sx: np.ndarray) -> tuple[np.ndarray, ...]:
         w = np.where(use, cwx / sx**2, 0.0)
         X, H, Hinv, det, r, depth = _solve(uv_in, w, Kx, Tx, Kix, int(iterations))
         e2 = np.sum(r * r, axis=-1)
@@ -348,7 +352,7 @@ def triangulate(uv_px, K, T_CW, *, pixel_sigma_px, camera_weights=None,
 
 
 def triangulate_from_observation(obs: Observation, *, pixel_sigma_px: float | None = None,
-                                 **options) -> Triangulation:
+                                 **options: Any) -> Triangulation:
     """:func:`triangulate` on a :class:`vision.observation.Observation`.
 
     Uses ``obs.uv_px``, ``obs.K``, ``obs.T_CW`` and ``obs.pixel_sigma_px`` (override it with

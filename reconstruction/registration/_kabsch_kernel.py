@@ -4,7 +4,7 @@
 that vectorises), then treats the problems of a block of ``BLOCK`` together: centred moments,
 then the rotation, ``t`` and the RMS residual by the Horn/QCP kernel
 :func:`reconstruction.registration.qcp.rotations_block`, in branch-free loops over the problems.
-It reproduces, problem by problem, the NumPy reference ``kabsch._kabsch_flat_numpy`` (same
+It reproduces, problem by problem, the NumPy reference ``kabsch.kabsch_flat_numpy`` (same
 failure codes; NaN rows skipped the same way); the rare problems that the reference hands to an
 SVD are flagged for the caller.  Compiled on first use
 (a few seconds) and cached on disk (``cache=True``).
@@ -228,7 +228,9 @@ def _recentre(P, Q, W, b, weighted, st, k):
 
 
 @numba.njit(**_JIT)
-def kabsch_batch(P, Q, W, weighted, R, t, rms, code, npts, flags):
+def kabsch_batch(P: np.ndarray, Q: np.ndarray, W: np.ndarray, weighted: bool, R: np.ndarray,
+                 t: np.ndarray, rms: np.ndarray, code: np.ndarray, npts: np.ndarray,
+                 flags: np.ndarray) -> None:
     """Weighted Kabsch fits of ``B`` problems, written into the output arrays.
 
     Blocks of ``BLOCK`` problems: the raw moments of each problem in one pass over its points

@@ -6,6 +6,7 @@ Open3D is imported inside the functions, so that importing this module stays lig
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from reconstruction._geometry import as_float, check_points, check_positive, check_probability
 from reconstruction.registration.result import KABSCH_REASONS, RigidRegistration
@@ -46,7 +47,8 @@ def _o3d_result(P, Q, T, fitness_inliers, method, reason=""):
     )
 
 
-def register_icp(P, Q, *, max_correspondence_m: float, R0=None, t0=None,
+def register_icp(P: ArrayLike, Q: ArrayLike, *, max_correspondence_m: float,
+                 R0: ArrayLike | None = None, t0: ArrayLike | None = None,
                  point_to_plane: bool = False, normal_radius_m: float | None = None,
                  max_iterations: int = 100) -> RigidRegistration:
     """Open3D ICP for ``Q ≈ R P + t`` when correspondences are unknown (clouds of any sizes).
@@ -103,7 +105,7 @@ def register_icp(P, Q, *, max_correspondence_m: float, R0=None, t0=None,
     return _o3d_result(P, Q, np.asarray(res.transformation), inl, "icp", reason)
 
 
-def register_fpfh_ransac(P, Q, *, voxel_size_m: float, max_iterations: int = 100000,
+def register_fpfh_ransac(P: ArrayLike, Q: ArrayLike, *, voxel_size_m: float, max_iterations: int = 100000,
                          confidence: float = 0.999, refine_with_icp: bool = True,
                          rng: np.random.Generator | int | None = None) -> RigidRegistration:
     """Global registration with Open3D FPFH features and RANSAC (correspondences unknown).
@@ -144,7 +146,7 @@ def register_fpfh_ransac(P, Q, *, voxel_size_m: float, max_iterations: int = 100
     reg = o3d.pipelines.registration
     o3d.utility.random.seed(int(rng.integers(0, 2**31 - 1)))
 
-    def prep(X):
+    def prep(X: np.ndarray) -> tuple[o3d.geometry.PointCloud, reg.Feature]:
         pc = _o3d_cloud(X).voxel_down_sample(v)
         pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=2 * v, max_nn=30))
         f = reg.compute_fpfh_feature(pc, o3d.geometry.KDTreeSearchParamHybrid(radius=5 * v,

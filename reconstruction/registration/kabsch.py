@@ -11,6 +11,7 @@ problem come from one pass over its points (the compiled kernel
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from reconstruction._geometry import as_float, check_points, scalar_or_array
 from reconstruction.registration import _kabsch_kernel
@@ -22,8 +23,13 @@ __all__ = ["fit_rigid", "kabsch_flat", "kabsch_flat_numpy", "prepare_clouds"]
 _CHUNK_COORDS = 38_400  # coordinates per cloud per chunk of the moment pass (300 kB, in cache)
 _SUM_GEMM_MAX_N = 4096  # up to this many points, coordinate sums by one GEMM per chunk
 
+#: ``(R (B, 3, 3), t (B, 3), code (B,) int8, npts (B,) int, rms (B,), rows (B, N) bool or None)``
+KabschFlat = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
 
-def _moment_chunks(P, Q, w, c, pairs, T6, M, S, sp, sq, gp, gq) -> None:
+
+def _moment_chunks(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None, c: int, pairs: bool,
+                   T6: np.ndarray | None, M: np.ndarray | None, S: np.ndarray, sp: np.ndarray,
+                   sq: np.ndarray, gp: np.ndarray, gq: np.ndarray) -> None:
     """Raw moments of :func:`_moments`, chunk by chunk, into ``S, sp, sq, gp, gq``."""
     B, N = P.shape[0], P.shape[1]
     if w is None and P.flags.c_contiguous and Q.flags.c_contiguous:
@@ -122,7 +128,28 @@ def _moments(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None
     return pbar, qbar, S, sw, G
 
 
-def prepare_clouds(P, Q, weights, *, names=("P", "Q"), scan=True):
+def prepare_clouds(P: ArrayLike, Q: ArrayLike, weights: ArrayLike | None, *,
+                   names: tuple[str, str] = ("P", "Q"), scan: bool = True
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Checked clouds broadcast to one shape ``(..., N, 3)`` and weights to ``(..., N)``.
+
+    Parameters
+    ----------
+    P, Q : array_like (..., N, 3)
+        Matched clouds, m (NaN rows allowed, ±inf rejected when ``scan``).
+    weights : array_like (..., N) or None
+        Non-negative finite weights.
+    names : tuple of str
+        Argument names used in the error messages.
+    scan : bool
+        Scan the points for infinite values here (else the caller detects them).
+
+    Returns
+    -------
+    P, Q : ndarray (..., N, 3)
+        Read-only broadcast views.
+    w : ndarray (..., N) or None
+    """
     P = check_points(P, names[0], scan=scan)
     Q = check_points(Q, names[1], scan=scan)
     try:
@@ -153,17 +180,18 @@ def readonly_c(a: np.ndarray) -> np.ndarray:
     return v
 
 
-def kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
+def kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None) -> KabschFlat:
     """Weighted Kabsch on flat ``(B, N, 3)`` problems (NaN rows ignored), compiled.
 
     Returns ``R, t, code, npts, rms, rows``: failure code per problem (0 ok, 1 too few points,
     2 collinear, 3 coincident), usable-point count, weighted RMS residual (m), and the ``(B, N)``
     mask of usable rows (``None`` when every row of every problem is finite).
 
-    The compiled kernel :func:`reconstruction._kabsch_kernel.kabsch_batch` reads each problem's points
-    once (weighted raw moments; a second pass, from cache, only for problems with NaN rows or
-    clouds far from the origin for their size), then solves the rotations of 64 problems at a
-    time with the closed-form quaternion of :func:`reconstruction.registration.qcp.rotations_from_correlations`.  It agrees with
+    The compiled kernel :func:`reconstruction.registration._kabsch_kernel.kabsch_batch` reads
+    each problem's points once (weighted raw moments; a second pass, from cache, only for
+    problems with NaN rows or clouds far from the origin for their size), then solves the
+    rotations of 64 problems at a time with the Horn/QCP kernel
+    :func:`reconstruction.registration.qcp.rotations_block`.  It agrees with
     :func:`kabsch_flat_numpy`, the NumPy reference, to rounding, with the same failure codes;
     the rare problems whose quaternion is ill-determined are handed to that reference (which
     solves them by SVD).
@@ -195,7 +223,7 @@ def kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
     return R, t, code, npts, rms, rows
 
 
-def kabsch_flat_numpy(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
+def kabsch_flat_numpy(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None) -> KabschFlat:
     """NumPy reference of :func:`kabsch_flat` (same returns): the moments of :func:`_moments`,
     then :func:`reconstruction.registration.qcp.rotations_from_correlations` on the whole batch."""
     B, N = P.shape[0], P.shape[1]
@@ -237,15 +265,16 @@ def kabsch_flat_numpy(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None):
     return R, t, code, npts, rms, rows
 
 
-def fit_rigid(P, Q, weights=None) -> RigidRegistration:
+def fit_rigid(P: ArrayLike, Q: ArrayLike, weights: ArrayLike | None = None) -> RigidRegistration:
     """Weighted least-squares rigid fit ``Q ≈ R P + t`` (Kabsch/Umeyama with det correction).
 
     Minimises 003 eq (12), ``Σ wᵢ ‖Qᵢ − R Pᵢ − t‖²``, by the closed form of 000 eq (29)–(38):
     weighted centroids (30), centred correlation ``B = Σ w (Q̃)(P̃)ᵀ = U D Vᵀ`` (33)–(34),
     ``R = U diag(1, 1, det U Vᵀ) Vᵀ`` (37) and ``t = Q̄ − R P̄`` (38), with the corrections of
-    SEEDS_SPEC FLAGs P000-10, P003-7 and P003-8 (6 DOF, ≥ 3 non-collinear points).  The rotation is
-    computed with Horn's equivalent quaternion eigenproblem in closed form, by a compiled kernel
-    that reads each problem's points once, so a batch of 10⁴ problems is a single fast call.
+    flags P000-10, P003-7 and P003-8 (docs/papers.md#p000-10, #p003-7, #p003-8: 6 DOF, ≥ 3
+    non-collinear points).  The rotation is computed with Horn's equivalent quaternion
+    eigenproblem in closed form (:mod:`reconstruction.registration.qcp`), by a compiled kernel that
+    reads each problem's points once, so a batch of 10⁴ problems is a single fast call.
 
     Parameters
     ----------
@@ -254,7 +283,7 @@ def fit_rigid(P, Q, weights=None) -> RigidRegistration:
     Q : array_like (..., N, 3)
         Target points, same order (e.g. the cloud at t + Δt), m.  NaN rows are ignored.
     weights : array_like (..., N), optional
-        Non-negative weights wᵢ (for 003 eq 12 use ``1/(W_ρ + ε₀)``, FLAG P003-4).  Default 1.
+        Non-negative weights wᵢ (for 003 eq 12 use ``1/(W_ρ + ε₀)``, flag P003-4).  Default 1.
 
     Returns
     -------

@@ -8,6 +8,7 @@ rotation and translation, ``[δθ, δt]`` with ``R_true = exp([δθ×]) R``.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.stats import chi2 as _chi2
 
 from attitude.batch import cross_product_matrices, matrices_from_rotvecs
@@ -25,7 +26,8 @@ from reconstruction.registration.robust import fit_rigid_robust
 __all__ = ["fit_rigid_ml"]
 
 
-def fit_rigid_ml(P, Q, cov_P, cov_Q, *, robust: bool = True, R0=None, t0=None,
+def fit_rigid_ml(P: ArrayLike, Q: ArrayLike, cov_P: ArrayLike, cov_Q: ArrayLike, *,
+                 robust: bool = True, R0: ArrayLike | None = None, t0: ArrayLike | None = None,
                  gate_probability: float = 0.9973, max_iterations: int = 20,
                  ransac_iterations: int = 1000, rng: np.random.Generator | int | None = None
                  ) -> RigidRegistration:
@@ -109,7 +111,7 @@ def fit_rigid_ml(P, Q, cov_P, cov_Q, *, robust: bool = True, R0=None, t0=None,
     t = np.where(start_ok[:, None], t, 0.0)
 
     # ---- Gauss–Newton
-    def residual_info(R, t):
+    def residual_info(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r = Qz - Pz @ np.swapaxes(R, -1, -2) - t[:, None, :]
         W = residual_information(R, cPz, cQz)
         return r, W

@@ -43,7 +43,7 @@ BLOCK = 64  # problems per block
 
 
 @numba.njit(**_JIT)
-def rotations_block(st, nb, out):
+def rotations_block(st: np.ndarray, nb: int, out: np.ndarray) -> None:
     """Rotation maximising ``tr(R S)``, ``t`` and the RMS residual of the ``nb`` problems in
     ``st`` (rows ``_SXX`` … ``_QZ``), into ``out`` (rows 0–8: R row-major, ``_TX`` … ``_RMS``,
     ``_COLLINEAR``, ``_COINCIDENT``, ``_FINITE``, ``_WEAK``).

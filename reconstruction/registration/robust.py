@@ -8,6 +8,7 @@ given) or a Euclidean threshold.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.stats import chi2 as _chi2
 
 from reconstruction._geometry import check_positive, check_probability, scalar_or_array
@@ -23,7 +24,9 @@ from reconstruction.registration.result import KABSCH_REASONS, RigidRegistration
 __all__ = ["fit_rigid_robust"]
 
 
-def fit_rigid_robust(P, Q, *, weights=None, cov_P=None, cov_Q=None, threshold_m=None,
+def fit_rigid_robust(P: ArrayLike, Q: ArrayLike, *, weights: ArrayLike | None = None,
+                     cov_P: ArrayLike | None = None, cov_Q: ArrayLike | None = None,
+                     threshold_m: float | None = None,
                      gate_probability: float = 0.9973, max_iterations: int = 1000,
                      confidence: float = 0.999, refits: int = 3,
                      rng: np.random.Generator | int | None = None) -> RigidRegistration:
@@ -88,7 +91,7 @@ def fit_rigid_robust(P, Q, *, weights=None, cov_P=None, cov_Q=None, threshold_m=
     Qz = np.where(valid[..., None], Qf, 0.0)
     nvalid = np.sum(valid, -1)
 
-    def score(R, t, sel):
+    def score(R: np.ndarray, t: np.ndarray, sel: np.ndarray) -> np.ndarray:
         """Inlier mask of problems ``sel`` under hypotheses R (b, H, 3, 3), t (b, H, 3)."""
         out = np.empty((len(sel), R.shape[1], N), bool)
         step = max(1, 200_000 // (R.shape[1] * max(N, 1)))
