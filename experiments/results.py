@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import shutil
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -12,7 +13,15 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-__all__ = ["ScenarioResult", "write_result", "write_summary", "json_default", "summary_text"]
+__all__ = ["Progress", "no_progress", "ScenarioResult", "write_result", "write_summary", "json_default",
+           "summary_text"]
+
+#: ``progress(done, total)``: how far a scenario run is (the CLI draws it as a bar)
+Progress = Callable[[int, int], None]
+
+
+def no_progress(done: int, total: int) -> None:
+    """The :data:`Progress` callback that reports nothing (the default of every scenario's ``run``)."""
 
 
 @dataclass

@@ -20,7 +20,7 @@ from chaser.rodrigues_pose import (
     solve_pose_rodrigues,
 )
 from experiments.bench import BenchRow, best_time, throughput_row
-from experiments.scenario_rodrigues import Config, cube_vertices, truth_001, visible_vertices
+from experiments.scenarios.rodrigues import Config, cube_vertices, truth_001, visible_vertices
 
 F_M, PIXEL_M, CENTRE = 0.2, 7e-6, np.array([1024.0, 1024.0])
 

@@ -18,16 +18,18 @@ Kind modules are imported on demand, by name, so importing the registry loads no
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable, Mapping
 from types import ModuleType
+from typing import Any
 
-__all__ = ["KINDS", "UnknownKindError", "kind_module"]
+__all__ = ["KINDS", "UnknownKindError", "kind_module", "lazy_getattr"]
 
 #: scenario kind → module implementing it.
 KINDS: dict[str, str] = {
-    "formation": "experiments.scenario_formation",
-    "tof_000": "experiments.scenario_tof",
-    "rodrigues_001": "experiments.scenario_rodrigues",
-    "cylindrical_004": "experiments.scenario_cylindrical",
+    "formation": "experiments.scenarios.formation",
+    "tof_000": "experiments.scenarios.tof",
+    "rodrigues_001": "experiments.scenarios.rodrigues",
+    "cylindrical_004": "experiments.scenarios.cylindrical",
 }
 
 
@@ -56,3 +58,27 @@ def kind_module(kind: str) -> ModuleType:
     if kind not in KINDS:
         raise UnknownKindError(f"kind: unknown scenario kind {kind!r}; known: {', '.join(sorted(KINDS))}")
     return importlib.import_module(KINDS[kind])
+
+
+def lazy_getattr(package: str, names: Mapping[str, str]) -> Callable[[str], Any]:
+    """A module-level ``__getattr__`` for a kind package that imports its heavy sub-modules on first use.
+
+    Parameters
+    ----------
+    package : str
+        The kind package (its ``__name__``).
+    names : mapping of str to str
+        Public name → the sub-module of ``package`` that defines it (``{"run": "run", "plot": "figures"}``).
+
+    Returns
+    -------
+    callable
+        ``__getattr__(name)``: the attribute from its sub-module; ``AttributeError`` for other names.
+    """
+
+    def __getattr__(name: str) -> Any:
+        if name in names:
+            return getattr(importlib.import_module(f"{package}.{names[name]}"), name)
+        raise AttributeError(f"module {package!r} has no attribute {name!r}")
+
+    return __getattr__

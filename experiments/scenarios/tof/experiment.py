@@ -8,9 +8,10 @@ Three studies in one run (each optional but the first):
   (mean, max, min, range of x, y, z, pitch, yaw, roll) plus the RMS errors against the truth;
 * ``sweep`` — the same with one Euler angle offset at a time over ``angles_deg``: attitude and
   position error against the angle;
-* ``matching`` — the Monte Carlo of SEEDS_SPEC Appendix A.5: ``trials`` random matching problems
-  per case (all markers, one missing, one spurious point in the volume or on the plate, both) for
-  each matcher, raw and after the pose verification.
+* ``matching`` — a Monte Carlo of the marker matchers (the check of the 000 matcher in
+  docs/tof.md): ``trials`` random matching problems per case (all markers, one missing, one
+  spurious point in the volume or on the plate, both) for each matcher, raw and after the pose
+  verification.
 
 Pitch, yaw, roll: 3-2-1 angles of ``R_SC = R_z(yaw) R_y(pitch) R_x(roll)`` (docs/tof.md).
 """
@@ -18,12 +19,9 @@ Pitch, yaw, roll: 3-2-1 angles of ``R_SC = R_z(yaw) R_y(pitch) R_x(roll)`` (docs
 from __future__ import annotations
 
 from collections.abc import Callable
-from pathlib import Path
-from typing import Literal
 
 import numpy as np
 import xarray as xr
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from attitude.euler import matrix_from_euler
 from attitude.matrix import rotation_angle
@@ -37,10 +35,11 @@ from chaser.tof import (
     random_matching_trials,
     verify_labels,
 )
-from experiments.results import ScenarioResult
+from experiments.results import ScenarioResult, no_progress
+from experiments.scenarios.tof.config import MATCHING_CASES, Config
 from vision.tof import CooperativeTarget, default_marker_plate, render_tof_frame, sr4000
 
-__all__ = ["Config", "run", "plot", "MATCHING_CASES", "MATCHERS", "TABLE1_000", "table1_stats"]
+__all__ = ["run", "TABLE1_000", "COLUMNS", "table1_stats"]
 
 #: 000 Table 1 (static repeatability at 700 mm), as printed.
 TABLE1_000 = {
@@ -50,112 +49,6 @@ TABLE1_000 = {
     "range": [0.37708, 0.3232, 4.111, 0.59019, 0.3952, 0.15919],
 }
 COLUMNS = ("x_mm", "y_mm", "z_mm", "pitch_deg", "yaw_deg", "roll_deg")
-
-#: matching cases: name → keyword arguments of :func:`chaser.tof.random_matching_trials`
-MATCHING_CASES = {
-    "all_visible": dict(),
-    "one_missing": dict(n_missing=1),
-    "one_spurious_volume": dict(n_spurious=1, spurious="volume"),
-    "one_spurious_plate": dict(n_spurious=1, spurious="plate"),
-    "missing_and_spurious": dict(n_missing=1, n_spurious=1, spurious="volume"),
-}
-MATCHERS = ("mrf", "mrf-literal", "mrf-sinkhorn", "mrf-quadratic", "hungarian")
-Estimator = Literal["plane", "mean"]
-
-
-class CameraConfig(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    model: Literal["sr4000"] = "sr4000"
-    ambient_dn: float = Field(0.0, ge=0.0, le=1e6, description="ambient light per pixel (DN)")
-    supersample: int = Field(3, ge=1, le=6, description="sub-rays per pixel and axis")
-
-
-class TargetConfig(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    distance_m: float = Field(0.7, description="plate origin on the boresight at this z (m)")
-    attitude_deg: tuple[float, float, float] = Field((0.0, 0.0, 0.0), description="pitch, yaw, roll (3-2-1)")
-    lateral_offset_m: tuple[float, float] = (0.0, 0.0)
-    standoff_m: float = Field(0.05, ge=0.0, le=1.0)
-    body_reflectivity: float = Field(0.3, ge=0.0, le=1.0)
-
-    @field_validator("distance_m")
-    @classmethod
-    def _fits(cls, v: float) -> float:
-        # the 0.30 m plate must fit in the 38.8 deg undistorted field of view, and stay inside
-        # the 5.0 m unambiguous range
-        if not 0.45 <= v <= 4.5:
-            raise ValueError("must lie in [0.45, 4.5] m (plate inside the SR4000 field of view and range)")
-        return v
-
-    @field_validator("attitude_deg")
-    @classmethod
-    def _angles(cls, v):
-        if any(abs(a) > 75.0 for a in v):
-            raise ValueError("each angle must lie in [-75, 75] deg (plate facing the camera)")
-        return v
-
-
-class StaticConfig(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    frames: int = Field(200, ge=2, le=100_000)
-
-
-class SweepConfig(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    axes: list[Literal["pitch", "yaw", "roll"]] = ["pitch", "yaw", "roll"]
-    angles_deg: list[float] = [-60.0, -45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0, 60.0]
-    frames_per_angle: int = Field(5, ge=1, le=10_000)
-
-    @field_validator("angles_deg")
-    @classmethod
-    def _angles(cls, v):
-        if not v or any(abs(a) > 75.0 for a in v):
-            raise ValueError("needs at least one angle, each in [-75, 75] deg")
-        return v
-
-
-class MatchingConfig(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    trials: int = Field(1000, ge=1, le=1_000_000)
-    noise_m: float = Field(0.002, ge=0.0, le=0.05, description="isotropic 3-D point noise (1 sigma)")
-    cases: list[Literal[tuple(MATCHING_CASES)]] = list(MATCHING_CASES)
-    matchers: list[Literal[MATCHERS]] = ["mrf", "mrf-literal", "hungarian"]
-
-
-class PipelineConfig(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    matcher: Literal["mrf", "mrf-sinkhorn", "mrf-literal", "hungarian"] = "mrf"
-    alpha_m: float = Field(0.010, gt=0.0, le=0.2, description="distance-consistency threshold alpha")
-    gate_factor: float = Field(2.0, gt=0.0, le=20.0, description="verification gate in units of alpha")
-    range_estimators: list[Estimator] = ["plane", "mean"]
-    weighting: Literal["inverse_variance", "uniform"] = "inverse_variance"
-
-    @field_validator("range_estimators")
-    @classmethod
-    def _nonempty(cls, v):
-        if not v or len(set(v)) != len(v):
-            raise ValueError("needs one or more distinct estimators")
-        return v
-
-
-class Config(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    kind: Literal["tof_000"]
-    title: str = "000 TOF cooperative-marker pose"
-    seed: int = Field(0, ge=0)
-    camera: CameraConfig = CameraConfig()
-    target: TargetConfig = TargetConfig()
-    pipeline: PipelineConfig = PipelineConfig()
-    static: StaticConfig = StaticConfig()
-    sweep: SweepConfig | None = None
-    matching: MatchingConfig | None = None
-
-    @model_validator(mode="after")
-    def _fov(self):
-        half = self.target.distance_m * np.tan(np.arctan(88.0 / 250.0))
-        if max(abs(o) for o in self.target.lateral_offset_m) + 0.15 > half:
-            raise ValueError("target.lateral_offset_m: the plate leaves the field of view at this distance")
-        return self
 
 
 def _R_from_pyr_deg(pyr_deg) -> np.ndarray:
@@ -180,8 +73,23 @@ def _pose_row(res, R_true: np.ndarray, r_true: np.ndarray) -> tuple[list[float],
     return row, att, pos
 
 
-def run(cfg: Config, *, progress: Callable[[int, int], None]) -> ScenarioResult:
-    """Run the static study, and the sweep and matching studies when configured."""
+def run(cfg: Config, *, progress: Callable[[int, int], None] | None = None) -> ScenarioResult:
+    """Run the static study, and the sweep and matching studies when configured.
+
+    Parameters
+    ----------
+    cfg : Config
+        The validated ``tof_000`` config.
+    progress : callable, optional
+        ``progress(done, total)`` after each frame or matching case.
+
+    Returns
+    -------
+    ScenarioResult
+        Per-frame poses and errors (``failure_reason`` per estimator and frame), the sweep and
+        matching arrays when configured, and the Table 1 summary.
+    """
+    progress = progress or no_progress
     camera = sr4000()
     plate = default_marker_plate()
     target = CooperativeTarget(plate=plate, standoff_m=cfg.target.standoff_m,
@@ -269,7 +177,7 @@ def run(cfg: Config, *, progress: Callable[[int, int], None]) -> ScenarioResult:
             summary[f"sweep_max_attitude_error_deg_{est}"] = float(np.nanmax(s_att[e]))
             summary[f"sweep_found_fraction_{est}"] = float(np.mean(np.isfinite(s_att[e])))
 
-    # ---- matching Monte Carlo (SEEDS_SPEC A.5)
+    # ---- matching Monte Carlo
     if cfg.matching is not None:
         mc = cfg.matching
         model = plate.markers_C
@@ -314,82 +222,3 @@ def _match(name: str, model: np.ndarray, points: np.ndarray, st: MatchSettings) 
     if name == "mrf-literal":
         return match_markers_mrf_literal(model, points, alpha_m=st.alpha_m).labels
     return match_markers_hungarian(model, points, alpha_m=st.alpha_m, truncation=st.truncation or 2.0).labels
-
-
-def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
-    """Static repeatability traces, sweep errors and matching success rates, from the dataset."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig_dir = Path(fig_dir)
-    out: list[Path] = []
-    if "example_amplitude_dn" in dataset:
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-        im = axes[0].imshow(dataset["example_amplitude_dn"], cmap="gray")
-        fig.colorbar(im, ax=axes[0], label="amplitude (DN)")
-        im = axes[1].imshow(dataset["example_range_m"], cmap="viridis")
-        fig.colorbar(im, ax=axes[1], label="radial range (m)")
-        uv = dataset["example_keypoint_uv_px"].values
-        for k, (u, v) in enumerate(uv):
-            lab = int(dataset["example_keypoint_label"].values[k])
-            axes[0].plot(u, v, "r+", ms=10)
-            axes[0].annotate(str(lab) if lab >= 0 else "null", (u, v), xytext=(7, -9), textcoords="offset points",
-                             color="gold", fontsize=9, fontweight="bold")
-        axes[0].set_title("amplitude, key points and MRF labels (frame 0)")
-        axes[1].set_title("range image (NaN: no return / low confidence)")
-        fig.tight_layout()
-        out.append(fig_dir / "tof_frame.png")
-        fig.savefig(out[-1], dpi=110)
-        plt.close(fig)
-
-    fig, axes = plt.subplots(2, 3, figsize=(12, 6), sharex=True)
-    for ax, c in zip(axes.ravel(), COLUMNS, strict=True):
-        for est in dataset["estimator"].values:
-            ax.plot(dataset["frame"], dataset[c].sel(estimator=est), ".", ms=3, label=str(est))
-        ax.set_title(c.replace("_", " / "))
-        ax.set_xlabel("frame")
-    axes[0, 0].legend(title="range estimator")
-    fig.suptitle("000 Table 1 reproduction: static target, repeated frames")
-    fig.tight_layout()
-    out.append(fig_dir / "tof_static.png")
-    fig.savefig(out[-1], dpi=110)
-    plt.close(fig)
-
-    if "sweep_attitude_error_deg" in dataset:
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-        for est in dataset["estimator"].values:
-            for axis in dataset["sweep_axis"].values:
-                sel = dict(estimator=est, sweep_axis=axis)
-                for ax, var in zip(axes, ("sweep_attitude_error_deg", "sweep_position_error_mm"), strict=True):
-                    rms = np.sqrt((dataset[var].sel(sel) ** 2).mean("sweep_frame"))
-                    ax.plot(dataset["sweep_angle_deg"], rms, "o-" if est == "plane" else "s--", label=f"{axis}, {est}")
-        axes[0].set_ylabel("RMS attitude error (deg)")
-        axes[1].set_ylabel("RMS position error (mm)")
-        for ax in axes:
-            ax.set_xlabel("offset of one Euler angle (deg)")
-            ax.set_yscale("log")
-        axes[0].legend(fontsize=7)
-        fig.tight_layout()
-        out.append(fig_dir / "tof_sweep.png")
-        fig.savefig(out[-1], dpi=110)
-        plt.close(fig)
-
-    if "labels_correct" in dataset:
-        cases, matchers = dataset["case"].values, dataset["matcher"].values
-        fig, axes = plt.subplots(1, 2, figsize=(12, 4), sharey=True)
-        w = 0.8 / len(matchers)
-        for ax, var in zip(axes, ("labels_correct", "labels_correct_verified"), strict=True):
-            rate = dataset[var].mean("trial")
-            for k, m in enumerate(matchers):
-                ax.bar(np.arange(len(cases)) + k * w, 100 * rate.sel(matcher=m), w, label=str(m))
-            ax.set_xticks(np.arange(len(cases)) + 0.4 - w / 2, [str(c).replace("_", "\n") for c in cases], fontsize=7)
-            ax.set_title(var.replace("_", " "))
-        axes[0].set_ylabel(f"trials with all labels correct (%), n = {dataset.sizes['trial']}")
-        axes[0].legend(fontsize=7)
-        fig.tight_layout()
-        out.append(fig_dir / "tof_matching.png")
-        fig.savefig(out[-1], dpi=110)
-        plt.close(fig)
-    return out

@@ -1,0 +1,23 @@
+"""Scenario kind ``cylindrical_004``: paper 004's orthogonal linear-CCD cameras, calibrated, measuring points and attitudes."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from experiments.scenarios import lazy_getattr
+from experiments.scenarios.cylindrical.config import (
+    PAPER_MAX_ERR_DEG,
+    TABLE1_MM,
+    TABLE2_DEG,
+    TABLE2_ERR_DEG,
+    Config,
+)
+
+if TYPE_CHECKING:
+    from experiments.scenarios.cylindrical.experiment import run
+    from experiments.scenarios.cylindrical.figures import plot
+
+__all__ = ["Config", "run", "plot", "TABLE1_MM", "TABLE2_DEG", "TABLE2_ERR_DEG", "PAPER_MAX_ERR_DEG"]
+
+# run and plot (and the science behind them) load on first use
+__getattr__ = lazy_getattr(__name__, {"run": "experiment", "plot": "figures"})

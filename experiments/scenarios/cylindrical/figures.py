@@ -1,0 +1,90 @@
+"""Figures of a ``cylindrical_004`` run, drawn from its stored dataset only."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+__all__ = ["plot"]
+
+
+def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
+    """Figures from the stored dataset: Table 1 errors, Table 2 errors, and the dynamic test."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig_dir = Path(fig_dir)
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    out = []
+    ds = dataset
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    n = ds.sizes["point"]
+    x = np.arange(n)
+    for k, axis in enumerate(["x", "y", "z"]):
+        ax.bar(x + (k - 1) * 0.25, ds["table1_error_mm"].sel(axis=axis), width=0.25, label=f"Δ{axis} (simulated)")
+    if "paper_table1_error_mm" in ds:
+        ax.plot(x, ds["paper_table1_error_mm"].sel(component="dxyz"), "k^", label="|Δ| paper Table 1")
+        ax.plot(x, ds["table1_error_norm_mm"], "ko", mfc="none", label="|Δ| simulated")
+    ax.axhline(0.5, color="r", ls=":", lw=1, label="0.5 mm claim")
+    ax.set_xticks(x, [str(i + 1) for i in x])
+    ax.set_xlabel("test point")
+    ax.set_ylabel("error (mm)")
+    ax.set_title("004 Table 1 analogue: 3-D point error")
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    p = fig_dir / "table1_point_errors.png"
+    fig.savefig(p, dpi=120)
+    plt.close(fig)
+    out.append(p)
+
+    fig, axes = plt.subplots(1, 3, figsize=(10, 3.6), sharey=True)
+    err = ds["attitude_error_deg"]
+    poses = ds["pose"].values
+    for k, name in enumerate(["yaw", "roll", "pitch"]):
+        ax = axes[k]
+        e = err.sel(angle=name).values
+        for j, pose in enumerate(poses):
+            ax.plot(np.full(e.shape[0], pose), e[:, j], ".", color="C0", alpha=0.4)
+        if "paper_attitude_error_deg" in ds:
+            ax.plot(poses, ds["paper_attitude_error_deg"].sel(angle=name), "k^", label="paper Table 2")
+        lim = {"yaw": 0.20, "roll": 0.12, "pitch": 0.23}[name]
+        ax.axhline(lim, color="r", ls=":", lw=1)
+        ax.axhline(-lim, color="r", ls=":", lw=1)
+        ax.set_title(f"{name} error")
+        ax.set_xlabel("pose")
+    axes[0].set_ylabel("deg")
+    axes[0].legend(fontsize=7)
+    fig.suptitle("004 Table 2 analogue (dots: noise trials; dotted: paper maxima)")
+    fig.tight_layout()
+    p = fig_dir / "table2_attitude_errors.png"
+    fig.savefig(p, dpi=120)
+    plt.close(fig)
+    out.append(p)
+
+    if "dyn_uv_true_px" in ds:
+        fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+        t = ds["time_s"].values
+        for k, tgt in enumerate(ds["target"].values):
+            axes[0].plot(t, ds["dyn_uv_true_px"].sel(target=tgt, camera=1, channel="u"), color=f"C{k}",
+                         label=f"LED {tgt}")
+            axes[1].plot(t, ds["dyn_track_error_mm"].sel(target=tgt), color=f"C{k}")
+        bad = ds["dyn_identity_ok"].values == 0
+        if np.any(bad):
+            axes[1].plot(t[bad], np.zeros(bad.sum()), "rx", label="identity swap")
+        axes[0].set_ylabel("camera 1, CCD1 u (px)")
+        axes[0].legend(fontsize=7)
+        axes[0].set_title("dynamic test: spots cross, identities kept by Kalman-predicted association")
+        axes[1].set_ylabel("track error (mm)")
+        axes[1].set_xlabel("time (s)")
+        axes[1].set_yscale("log")
+        fig.tight_layout()
+        p = fig_dir / "dynamic_tracking.png"
+        fig.savefig(p, dpi=120)
+        plt.close(fig)
+        out.append(p)
+    return out

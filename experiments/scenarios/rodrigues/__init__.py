@@ -1,0 +1,25 @@
+"""Scenario kind ``rodrigues_001``: paper 001's monocular relative pose over 6000 s, against OpenCV and pycolmap."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from experiments.scenarios import lazy_getattr
+from experiments.scenarios.rodrigues.config import Config
+from experiments.scenarios.rodrigues.truth import (
+    R_HO,
+    crossing_times_s,
+    cube_vertices,
+    truth_001,
+    visible_vertices,
+)
+
+if TYPE_CHECKING:
+    from experiments.scenarios.rodrigues.experiment import SOLVERS, run
+    from experiments.scenarios.rodrigues.figures import plot
+
+__all__ = ["Config", "run", "plot", "SOLVERS", "R_HO", "truth_001", "crossing_times_s", "cube_vertices",
+           "visible_vertices"]
+
+# run and plot (OpenCV and pycolmap behind them) load on first use
+__getattr__ = lazy_getattr(__name__, {"run": "experiment", "SOLVERS": "experiment", "plot": "figures"})

@@ -1,0 +1,127 @@
+"""The ``tof_000`` config: camera, target pose, pipeline options and the optional sweep and matching studies."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field, field_validator, model_validator
+
+from experiments.config import ConfigTable, ScenarioConfig
+
+__all__ = ["Config", "MATCHING_CASES", "MATCHERS", "CameraConfig", "TargetConfig", "StaticConfig", "SweepConfig",
+           "MatchingConfig", "PipelineConfig"]
+
+#: matching cases: name → keyword arguments of :func:`chaser.tof.random_matching_trials`
+MATCHING_CASES = {
+    "all_visible": dict(),
+    "one_missing": dict(n_missing=1),
+    "one_spurious_volume": dict(n_spurious=1, spurious="volume"),
+    "one_spurious_plate": dict(n_spurious=1, spurious="plate"),
+    "missing_and_spurious": dict(n_missing=1, n_spurious=1, spurious="volume"),
+}
+MATCHERS = ("mrf", "mrf-literal", "mrf-sinkhorn", "mrf-quadratic", "hungarian")
+#: range estimators of the key points
+Estimator = Literal["plane", "mean"]
+
+
+class CameraConfig(ConfigTable):
+    """The SR4000 TOF camera: ambient light and supersampling of the renderer."""
+
+    model: Literal["sr4000"] = "sr4000"
+    ambient_dn: float = Field(0.0, ge=0.0, le=1e6, description="ambient light per pixel (DN)")
+    supersample: int = Field(3, ge=1, le=6, description="sub-rays per pixel and axis")
+
+
+class TargetConfig(ConfigTable):
+    """Pose of the marker plate in the camera frame, and its mount."""
+
+    distance_m: float = Field(0.7, description="plate origin on the boresight at this z (m)")
+    attitude_deg: tuple[float, float, float] = Field((0.0, 0.0, 0.0), description="pitch, yaw, roll (3-2-1)")
+    lateral_offset_m: tuple[float, float] = (0.0, 0.0)
+    standoff_m: float = Field(0.05, ge=0.0, le=1.0)
+    body_reflectivity: float = Field(0.3, ge=0.0, le=1.0)
+
+    @field_validator("distance_m")
+    @classmethod
+    def _fits(cls, v: float) -> float:
+        # the 0.30 m plate must fit in the 38.8 deg undistorted field of view, and stay inside
+        # the 5.0 m unambiguous range
+        if not 0.45 <= v <= 4.5:
+            raise ValueError("must lie in [0.45, 4.5] m (plate inside the SR4000 field of view and range)")
+        return v
+
+    @field_validator("attitude_deg")
+    @classmethod
+    def _angles(cls, v):
+        if any(abs(a) > 75.0 for a in v):
+            raise ValueError("each angle must lie in [-75, 75] deg (plate facing the camera)")
+        return v
+
+
+class StaticConfig(ConfigTable):
+    """The static repeatability study (000 Table 1): frames of a held target."""
+
+    frames: int = Field(200, ge=2, le=100_000)
+
+
+class SweepConfig(ConfigTable):
+    """The attitude sweep: one Euler angle offset at a time."""
+
+    axes: list[Literal["pitch", "yaw", "roll"]] = ["pitch", "yaw", "roll"]
+    angles_deg: list[float] = [-60.0, -45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0, 60.0]
+    frames_per_angle: int = Field(5, ge=1, le=10_000)
+
+    @field_validator("angles_deg")
+    @classmethod
+    def _angles(cls, v):
+        if not v or any(abs(a) > 75.0 for a in v):
+            raise ValueError("needs at least one angle, each in [-75, 75] deg")
+        return v
+
+
+class MatchingConfig(ConfigTable):
+    """The matching Monte Carlo: random matching problems per case and matcher."""
+
+    trials: int = Field(1000, ge=1, le=1_000_000)
+    noise_m: float = Field(0.002, ge=0.0, le=0.05, description="isotropic 3-D point noise (1 sigma)")
+    cases: list[Literal[tuple(MATCHING_CASES)]] = list(MATCHING_CASES)
+    matchers: list[Literal[MATCHERS]] = ["mrf", "mrf-literal", "hungarian"]
+
+
+class PipelineConfig(ConfigTable):
+    """The pose pipeline: matcher, thresholds, range estimators, weighting."""
+
+    matcher: Literal["mrf", "mrf-sinkhorn", "mrf-literal", "hungarian"] = "mrf"
+    alpha_m: float = Field(0.010, gt=0.0, le=0.2, description="distance-consistency threshold alpha")
+    gate_factor: float = Field(2.0, gt=0.0, le=20.0, description="verification gate in units of alpha")
+    range_estimators: list[Estimator] = ["plane", "mean"]
+    weighting: Literal["inverse_variance", "uniform"] = "inverse_variance"
+
+    @field_validator("range_estimators")
+    @classmethod
+    def _nonempty(cls, v):
+        if not v or len(set(v)) != len(v):
+            raise ValueError("needs one or more distinct estimators")
+        return v
+
+
+class Config(ScenarioConfig):
+    """The whole ``tof_000`` config."""
+
+    kind: Literal["tof_000"]
+    title: str = "000 TOF cooperative-marker pose"
+    seed: int = Field(0, ge=0)
+    camera: CameraConfig = CameraConfig()
+    target: TargetConfig = TargetConfig()
+    pipeline: PipelineConfig = PipelineConfig()
+    static: StaticConfig = StaticConfig()
+    sweep: SweepConfig | None = None
+    matching: MatchingConfig | None = None
+
+    @model_validator(mode="after")
+    def _fov(self):
+        half = self.target.distance_m * np.tan(np.arctan(88.0 / 250.0))
+        if max(abs(o) for o in self.target.lateral_offset_m) + 0.15 > half:
+            raise ValueError("target.lateral_offset_m: the plate leaves the field of view at this distance")
+        return self
