@@ -1,4 +1,4 @@
-"""Observation constraints of 003 §1.2 (SEEDS_SPEC §3.3.1), vectorised over epochs and spacecraft.
+"""Observation constraints of 003 §1.2 (eq (1) and the listed conditions), vectorised over epochs and spacecraft.
 
 Per spacecraft (arrays ``(..., N)``; margins in the constraint's unit, positive = satisfied):
 
@@ -48,7 +48,8 @@ class ObservationConstraints:
     d_min_form : {"tan", "sin"}
         003 eq (1) (flat disk, ``λ R / tan(FoV/2)``) or the spherical form of flag P003-1.
     d_min_lambda : float
-        λ of 003 eq (1) (SEEDS_SPEC suggests 1.1 with the tan form).
+        λ of 003 eq (1) (1.1 with the tan form covers a spherical region, flag P003-1,
+        docs/papers.md#p003-1).
     pointing_max_rad : float
         Largest boresight–line-of-sight angle.
     axis_angle_min_rad, axis_angle_max_rad : float

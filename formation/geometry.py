@@ -1,4 +1,4 @@
-"""Symmetric n-view observation geometry (003 §3.1; SEEDS_SPEC §3.6) and look-at camera poses.
+"""Symmetric n-view observation geometry (003 §3.1) and look-at camera poses.
 
 n cameras sit at the same distance ``d`` from the target's centre, evenly spaced in azimuth on a
 cone of half-angle φ about the geometry axis ``ẑ_G``, each looking at the target.  The angle between
@@ -7,7 +7,7 @@ two boresights ``k`` apart in azimuth is given by
     cos γ_k = cos²φ + sin²φ cos(2πk/n),
 
 so requiring the *adjacent* pairs to be at the axis angle γ gives ``sin φ = sin(γ/2) / sin(π/n)``
-(for n = 3 this is SEEDS_SPEC §3.6's ``sin φ = (2/√3) sin(γ/2)``; for n = 2 it is φ = γ/2, the two
+(for n = 3 this is ``sin φ = (2/√3) sin(γ/2)``, i.e. ``cos γ = 1 − (3/2) sin² φ``; for n = 2 it is φ = γ/2, the two
 cameras at azimuth ±γ/2 in one plane).  For n = 2 and 3 every pair is adjacent, so every pair of
 optical axes is at γ.  For n >= 4 no arrangement of n lines through a point can have all pairwise
 angles equal to an arbitrary γ (at most 6 equiangular lines exist in 3-D, and only at the

@@ -1,7 +1,7 @@
 """Input validators shared by the orbits modules (private).
 
 Every public entry point of :mod:`orbits` validates with these, so bad input raises ``ValueError``
-naming the parameter and the offending value (ARCHITECTURE §7).
+naming the parameter and the offending value (``docs/architecture.md``, Contracts).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Clohessy–Wiltshire (Hill) relative motion about a circular chief orbit.
 
 State ``x_H = [x, y, z, ẋ, ẏ, ż]`` of a deputy relative to the chief, in the chief's Hill frame H
-(x radial outward, y along-track, z orbit normal; ARCHITECTURE §2), metres and metres per second,
+(x radial outward, y along-track, z orbit normal; ``docs/conventions.md``), metres and metres per second,
 with velocities as seen in the rotating frame (what :func:`orbits.hill.hill_from_inertial` returns).
 The linearised equations (Clohessy & Wiltshire 1960, J. Aerospace Sci. 27(9):653–658) are
 

@@ -1,6 +1,6 @@
 """The Hill (LVLH) frame H of a chief, and relative states in it.
 
-H is centred on the chief C (in coobs: the target's centre of mass), with (ARCHITECTURE §2)
+H is centred on the chief C (in coobs: the target's centre of mass), with (``docs/conventions.md``)
 
 * x radial outward, ``x̂ = r_C / |r_C|``,
 * z along the orbit normal, ``ẑ = h / |h|`` with ``h = r_C × v_C``,

@@ -1,13 +1,13 @@
-"""Orbit geometry of paper 001's simulation (SEEDS_SPEC §2.4 Table 1, §2.5, Appendix A.2).
+"""Orbit geometry of paper 001's simulation (001 Table 1).
 
 Both spacecraft are on 6721.2 km orbits inclined ≈42.225°, RAAN 0.  The chaser has e = 1e-7,
 argument of perigee 0 and passes the ascending node 0.013 s *after* the target, so the target
 leads by ≈100 m along-track; the chaser's inclination is 5e-6° higher (±0.59 m cross-track).
-Following SEEDS_SPEC §2.7, the time of node passage fixes the mean anomaly,
+001 gives times of node passage, not anomalies; here the time of node passage fixes the mean anomaly,
 ``M = n (t − t_node)``, with the argument of latitude 0 at node passage (for the chaser, perigee
 is at the node).  Propagation is Keplerian two-body with μ = 398600.4418 km³/s².
 
-DERIVED facts reproduced (SEEDS_SPEC §2.5, `seeds/spec_checks/orb.py`): over 0–6000 s the
+Facts derived from Table 1 by Keplerian propagation and reproduced here: over 0–6000 s the
 relative range stays within 98.8–101.5 m, the radial offset within ±0.67 m, the cross-track
 offset within ±0.59 m; the period is 5483.8 s.
 """
@@ -27,7 +27,7 @@ from orbits.two_body import MU_EARTH_M3_S2, state_from_elements, true_from_mean_
 __all__ = ["Table1Orbit", "CHASER_001", "TARGET_001", "Scenario001Geometry", "scenario_001_geometry",
            "DURATION_001_S", "STEP_001_S"]
 
-#: Simulation length and step of paper 001 (SEEDS_SPEC §2.4).
+#: Simulation length and step of paper 001 (stated in 001).
 DURATION_001_S = 6000.0
 STEP_001_S = 5.0
 
@@ -84,7 +84,7 @@ class Scenario001Geometry:
         Inertial states (m, m/s).
     x_chaser_target_H : ndarray, shape (T, 6)
         Chaser relative to the target in the *target's* Hill frame H (coobs convention,
-        ARCHITECTURE §2), ``[r, v]`` (m, m/s; rotating-frame velocity).
+        ``docs/conventions.md``), ``[r, v]`` (m, m/s; rotating-frame velocity).
     x_target_chaser_Hc : ndarray, shape (T, 6)
         Target relative to the chaser in the *chaser's* Hill frame (x radial, y along-track,
         z normal): the frame in which 001 reports its position errors (FLAG P001-4, whose X is

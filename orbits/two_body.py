@@ -44,7 +44,7 @@ __all__ = [
     "relative_trajectory",
 ]
 
-#: Earth's gravitational parameter (EGM-96 / WGS-84 value used by SEEDS_SPEC §2.5), m³/s².
+#: Earth's gravitational parameter (EGM-96 / WGS-84 value, the μ = 398600.4418 km³/s² of 001's scenario), m³/s².
 MU_EARTH_M3_S2 = 3.986004418e14
 #: Earth's equatorial radius (WGS-84), m.
 R_EARTH_M = 6378137.0

@@ -1,6 +1,6 @@
 """Pinhole camera model and camera poses.
 
-Conventions (ARCHITECTURE §2):
+Conventions (``docs/conventions.md``):
 
 - camera frame C in the OpenCV convention: z along the boresight, x right and y down in the image;
 - pixel coordinates ``uv_px = (u, v)`` with u to the right and v down, and the origin at the

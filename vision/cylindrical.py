@@ -65,8 +65,8 @@ class CylindricalCamera:
     """Hardware of one orthogonal cylindrical-imaging camera (two linear CCDs).
 
     The values that are pairs are ``(CCD1 = horizontal channel u/α, CCD2 = vertical channel v/β)``.
-    None of them is given in 004; the defaults follow SEEDS_SPEC §4.6 (5000–8000 pixels, 7 µm pitch,
-    ±15° field at f = 100 mm).
+    None of them is given in 004; the defaults are our choice of a typical linear CCD (5000–8000
+    pixels, 7 µm pitch, ±15° field at f = 100 mm).
 
     Attributes
     ----------
@@ -451,7 +451,7 @@ def detect_spots(
     Each peak is refined:
 
     * ``"threshold_centroid"`` (004): centroid of ``I − T`` over the contiguous pixels above the
-      grey threshold ``T = background + threshold_fraction · peak`` (SEEDS_SPEC §4.6: 50 %);
+      grey threshold ``T = background + threshold_fraction · peak`` (default 50 %, our choice: 004 gives no value);
     * ``"gaussian3"``: vertex of the parabola through the logarithms of the three pixels at the
       peak (exact for a sampled Gaussian).
 

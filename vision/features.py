@@ -1,9 +1,9 @@
 """Feature detection, pairwise matching with epipolar gating, and multi-view tracks.
 
-Paper 003 §1.4 (SEEDS_SPEC §3.2 step 4, §3.3.2): detect features in every view, match each pair of
+Paper 003 §1.4 (step 4 of its pipeline): detect features in every view, match each pair of
 views at the same epoch by approximate nearest neighbours with Lowe's ratio test (λ = 0.6), and
 reject matches that violate the epipolar constraint of the known relative pose, 003 eq (2)–(3) in the
-corrected form of SEEDS_SPEC flag P003-2:
+corrected form of flag P003-2 (docs/papers.md#p003-2):
 
 - pixel homogeneous coordinates with ``F = K_A^-T [t_AB]x R_AB K_B^-1`` (eq 3), where
   ``X_A = R_AB X_B + t_AB`` maps camera-B coordinates into camera A (flag P003-2 (b));
@@ -109,7 +109,7 @@ def _make_detector(detector: str, max_features: int, options: dict):
         return cv2.SIFT_create(nfeatures=int(max_features), **opts)
     if detector == "surf":
         try:
-            # SEEDS_SPEC §3.7: Hessian threshold 400, 4 octaves, 3 layers, upright false
+            # 003 names SURF without parameters; ours: Hessian threshold 400, 4 octaves, 3 layers, upright false
             opts = {"hessianThreshold": 400, "nOctaves": 4, "nOctaveLayers": 3, "upright": False}
             opts.update(options)
             return cv2.xfeatures2d.SURF_create(**opts)
@@ -186,7 +186,7 @@ def detect(image: ArrayLike, *, detector: str = "sift", roi: tuple[int, int, int
 
 
 def fundamental_from_poses(K_A: ArrayLike, T_AW: ArrayLike, K_B: ArrayLike, T_BW: ArrayLike) -> np.ndarray:
-    """Fundamental matrix of two calibrated views, 003 eq (3) corrected per SEEDS_SPEC flag P003-2.
+    """Fundamental matrix of two calibrated views, 003 eq (3) corrected (flag P003-2, docs/papers.md#p003-2).
 
     ``F = K_A^-T [t_AB]x R_AB K_B^-1`` with ``R_AB = R_AW R_BWᵀ``, ``t_AB = t_AW - R_AB t_BW``
     (``X_A = R_AB X_B + t_AB``), so that ``x_Aᵀ F x_B = 0`` for pixel homogeneous coordinates of the
@@ -296,7 +296,7 @@ def match_pair(kp_A: Keypoints, kp_B: Keypoints, *, ratio: float = 0.6, F_AB: Ar
     guided, guided_k : bool, int
         Epipolar-guided search and its neighbour count.
     flann_trees, flann_checks : int
-        FLANN kd-tree parameters (SEEDS_SPEC §3.7: 4 trees, 32 checks).
+        FLANN kd-tree parameters (4 trees, 32 checks by default: our choice, 003 gives none).
 
     Returns
     -------

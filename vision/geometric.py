@@ -28,7 +28,7 @@ Default parameters are calibrated against the rendered mode (FY-1-like target, t
 cameras 10° apart, Sun from the side, 8 random attitudes; ``docs/vision.md``): 1500 features with
 scales 0.01–0.15 m and a 3 px detection limit give mean track counts of 79 (rendered: 76) at 50 m
 and 26 (rendered: 21) at 100 m; the rendered mode's pooled false-track fraction was 1–3 %, hence
-``false_match_fraction = 0.02``. ``pixel_sigma_px = 0.5`` is SEEDS_SPEC §3.7's suggestion; it is
+``false_match_fraction = 0.02``. ``pixel_sigma_px = 0.5`` is our choice (003 gives no image-noise figure); it is
 conservative: the rendered SIFT tracks differ between views by 0.18 px rms per axis at 50 m and
 0.27 px at 100 m (about 0.13 and 0.19 px per view).
 

@@ -3,7 +3,7 @@
 The camera is a continuous-wave phase-measuring TOF camera of the MESA SR4000 class: a pinhole
 camera (``fx, fy, cx, cy`` in pixels, no distortion) that measures, per pixel, the *radial* range
 along the pixel ray and the amplitude (grey value) of the modulated return.  The geometry is
-000 eq (2)–(5) in the corrected form of SEEDS_SPEC flag P000-1: ``u_r / f_x = x0 / z0`` with
+000 eq (2)–(5) in the corrected form (flag P000-1, docs/papers.md#p000-1): ``u_r / f_x = x0 / z0`` with
 ``f_x = f / d_x`` in pixels, and eq (5) back-projects a radial range ``d``.
 
 Physics of one pixel (:func:`render_tof_frame`):

@@ -1,4 +1,4 @@
-"""Symmetric n-view geometry (003 §3.1, SEEDS_SPEC §3.6): angles, ranges, look-at poses."""
+"""Symmetric n-view geometry (003 §3.1): angles, ranges, look-at poses."""
 
 import numpy as np
 import pytest
@@ -27,7 +27,7 @@ def test_four_views_have_adjacent_pairs_at_gamma_and_opposite_pairs_wider():
 
 
 def test_three_view_cone_matches_the_spec_example():
-    """SEEDS_SPEC §3.6: d = 50 m, γ = 10° gives φ = 5.78° and baseline 8.72 m."""
+    """Three views at d = 50 m, γ = 10° give φ = 5.78° and baseline 8.72 m."""
     g = symmetric_views(3, 50.0, 10.0)
     assert np.rad2deg(g.cone_half_angle_rad) == pytest.approx(5.78, abs=0.005)
     np.testing.assert_allclose(g.baselines_m[np.triu_indices(3, 1)], 2 * 50 * np.sin(np.deg2rad(5)), rtol=1e-12)

@@ -26,7 +26,7 @@ def _scaled(Phi):
 
 
 def test_mean_motion_of_001_orbit():
-    """SEEDS_SPEC §2.5: the 6721.2 km orbit has a period of 5483.8 s."""
+    """The 6721.2 km orbit of 001 Table 1 has a period of 5483.8 s."""
     assert abs(2 * np.pi / cw.mean_motion(A_M) - 5483.8) < 0.05
 
 

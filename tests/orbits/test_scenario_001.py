@@ -1,4 +1,4 @@
-"""Tests of orbits.scenario_001: paper 001 Table 1 geometry (SEEDS_SPEC §2.5, Appendix A.2)."""
+"""Tests of orbits.scenario_001: paper 001 Table 1 geometry and the facts derived from it."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from orbits.two_body import elements_from_state, propagate_kepler
 
 
 def test_relative_range_98_8_to_101_5_m_over_6000_s():
-    """SEEDS_SPEC §2.5 / A.2: relative range 98.8–101.5 m over 0–6000 s (5 s steps), radial
+    """Derived from 001 Table 1 (Keplerian): relative range 98.8–101.5 m over 0–6000 s (5 s steps), radial
     offset within ±0.67 m, cross-track within ±0.59 m, target ≈100 m ahead along-track."""
     g = scenario_001_geometry()
     assert g.t_s.shape == (1201,) and g.t_s[-1] == 6000.0
