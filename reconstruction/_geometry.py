@@ -59,11 +59,17 @@ def check_poses(T_CW: ArrayLike, name: str = "T_CW") -> np.ndarray:
     return T
 
 
-def check_positive(x: ArrayLike, name: str) -> np.ndarray:
+def check_positive(x: ArrayLike, name: str, shape: tuple[int, ...] | None = None) -> np.ndarray:
+    """Finite, strictly positive values; broadcast (read-only view) to ``shape`` when given."""
     arr = as_float(x, name)
     if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
         raise ValueError(f"{name}: must be finite and > 0, got {x!r}")
-    return arr
+    if shape is None:
+        return arr
+    try:
+        return np.broadcast_to(arr, shape)
+    except ValueError:
+        raise ValueError(f"{name}: shape {arr.shape} does not broadcast to {shape}") from None
 
 
 def check_probability(p: float, name: str) -> float:

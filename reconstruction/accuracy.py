@@ -98,12 +98,7 @@ def _check_common(X_W, K, T_CW, pixel_sigma_px, visible, image_size):
         raise ValueError(f"T_CW: expected {n} views like K, got {T.shape}")
     batch = np.broadcast_shapes(X.shape[:-2], K.shape[:-3], T.shape[:-3])
     M = X.shape[-2]
-    sigma = check_positive(pixel_sigma_px, "pixel_sigma_px")
-    try:
-        sigma = np.broadcast_to(sigma, batch + (M, n))
-    except ValueError:
-        raise ValueError(f"pixel_sigma_px: shape {np.shape(pixel_sigma_px)} does not broadcast "
-                         f"to {batch + (M, n)}") from None
+    sigma = check_positive(pixel_sigma_px, "pixel_sigma_px", batch + (M, n))
     if visible is not None:
         vis = np.asarray(visible, dtype=bool)
         try:

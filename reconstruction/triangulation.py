@@ -248,12 +248,7 @@ def triangulate(uv_px: ArrayLike, K: ArrayLike, T_CW: ArrayLike, *, pixel_sigma_
     except ValueError:
         raise ValueError(f"K, T_CW: batch shapes {K.shape[:-3]}, {T.shape[:-3]} do not broadcast "
                          f"with uv_px batch {uv.shape[:-3]}") from None
-    sigma = check_positive(pixel_sigma_px, "pixel_sigma_px")
-    try:
-        sigma = np.broadcast_to(sigma, batch + (M, n))
-    except ValueError:
-        raise ValueError(f"pixel_sigma_px: shape {np.shape(pixel_sigma_px)} does not broadcast to "
-                         f"(..., n_points, n_views) = {batch + (M, n)}") from None
+    sigma = check_positive(pixel_sigma_px, "pixel_sigma_px", batch + (M, n))
     if camera_weights is None:
         cw = np.ones(batch + (n,))
     else:
