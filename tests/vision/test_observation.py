@@ -31,7 +31,7 @@ def test_empty_observation_carries_reason_and_zero_tracks():
     obs = Observation.empty(K, T, (640, 480), 0.3, "target in Earth shadow")
     assert obs.n_tracks == 0 and obs.n_views == 2 and not obs.ok
     assert obs.uv_px.shape == (0, 2, 2) and obs.descriptors.shape == (0, 128)
-    assert obs.status == "target in Earth shadow"
+    assert obs.failure_reason == "target in Earth shadow"
 
 
 @pytest.mark.parametrize("field,value", [
