@@ -1,19 +1,9 @@
-"""Attitude and spin estimation of a tumbling target (ARCHITECTURE §1; paper 003 §2).
+"""Batched attitude and spin estimation of a tumbling target: EKF, MEKF, Monte Carlo, metrics."""
 
-* :class:`AttitudeEKF` — the paper's 7-state additive-quaternion EKF (003 eq 14–32).
-* :class:`MEKF` — multiplicative (error-state) EKF, optionally estimating two inertia ratios.
-* Both take absolute attitudes (:meth:`update_absolute`) and registration increments measured in
-  the rotating Hill frame (:meth:`update_increment`, stochastic cloning), gate outliers, skip
-  missing epochs, and flag trials whose covariance stops being positive definite.
-* :func:`run_monte_carlo` — M filters at once, one random stream per trial.
-* :mod:`filters.metrics` — 003 eq (36)–(37), rotation-angle error, convergence, NEES, SPEED score.
-* :mod:`filters.noise_mapping` — rotation-vector covariance to quaternion covariance (UT).
-
-Every estimate is batched: states hold ``(M, ...)`` arrays and a single filter is a batch of one.
-"""
-
+from ._base import AttitudeFilter
 from .attitude_ekf import AttitudeEKF
 from .dynamics import inertia_from_ratios, inertia_ratios_from_inertia, propagate_rk4
+from .measurements import AbsoluteAttitudeMeasurement, IncrementMeasurement
 from .mekf import MEKF
 from .metrics import (
     ConvergenceCriterion,
@@ -38,7 +28,10 @@ from .noise_mapping import quat_noise_covariance, rotvec_covariance_from_angle_e
 from .state import FilterState, ProcessNoise
 
 __all__ = [
+    "AttitudeFilter",
     "AttitudeEKF",
+    "IncrementMeasurement",
+    "AbsoluteAttitudeMeasurement",
     "MEKF",
     "FilterState",
     "ProcessNoise",

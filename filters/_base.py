@@ -19,6 +19,7 @@ from attitude.rigid_body import check_inertia
 
 from ._batch import as_batch, inv3, positive_definite, sym
 from .dynamics import _Inertia
+from .measurements import AbsoluteAttitudeMeasurement, IncrementMeasurement
 from .state import FAILURE_NON_FINITE, FAILURE_NOT_PD, FilterState, ProcessNoise
 
 _IDENTITY_Q = np.array([1.0, 0.0, 0.0, 0.0])
@@ -141,6 +142,107 @@ class AttitudeFilter(ABC):
             last_nis=np.full(M, np.nan),
         )
 
+    # ------------------------------------------------------------------ the filter interface
+    @abstractmethod
+    def predict(self, state: FilterState, dt_s: float) -> FilterState:
+        """Propagate every trial by ``dt_s`` through the torque-free dynamics (003 eq (25)–(27)).
+
+        Parameters
+        ----------
+        state : FilterState
+            Batch of ``M`` estimates; failed trials stay failed (NaN) and are not propagated.
+        dt_s : float
+            Time step, s, finite and ``>= 0``.  The nominal state takes ``n_substeps`` RK4 steps
+            and the covariance the matching transition matrix plus ``dt_s`` times the process-noise
+            density (no noise realisation: flag P003-9, docs/papers.md#p003-9).  A clone, if
+            held, stays at its epoch; its cross-covariance is carried along.
+
+        Returns
+        -------
+        FilterState
+            A new state at ``state.t_s + dt_s``; a trial whose estimate turns non-finite is
+            flagged ``failed``.
+
+        Raises
+        ------
+        ValueError
+            If ``state`` belongs to another filter or ``dt_s`` is negative or not finite.
+        """
+
+    @abstractmethod
+    def update_absolute(self, state: FilterState, z: AbsoluteAttitudeMeasurement | None) -> FilterState:
+        """Update every trial with a measured absolute attitude ``z.q_NT = q_NT ⊗ exp(e/2)``.
+
+        Parameters
+        ----------
+        state : FilterState
+        z : AbsoluteAttitudeMeasurement or None
+            One row per trial (or one shared row).  NaN rows, rows with a non-finite covariance,
+            and ``None`` (no measurement this epoch) leave those trials as they are, apart from
+            the symmetrisation of P that every update applies and a NaN ``last_nis``.
+
+        Returns
+        -------
+        FilterState
+            The updated state.  A measurement whose normalised innovation squared (three rotational
+            degrees of freedom) exceeds the chi-square gate is rejected and counted in
+            ``n_rejected``; after ``reset_after_rejections`` consecutive rejections the trial's
+            covariance is reset.  A trial whose covariance stops being positive definite is
+            flagged ``failed`` (``ok`` false) instead of raising.
+
+        Raises
+        ------
+        ValueError
+            If ``state`` belongs to another filter or ``z`` has the wrong number of trials.
+        """
+
+    @abstractmethod
+    def update_increment(self, state: FilterState, z: IncrementMeasurement | None) -> FilterState:
+        """Update with the registered increment since the clone, then clone the current attitude.
+
+        The increment, measured in the rotating Hill frame, is converted to N,
+        ``Δq_N = q_NH(now) ⊗ Δq_H ⊗ q_NH(prev)⁻¹`` (``docs/conventions.md``), and compared with
+        ``q_NT(now) ⊗ q_NT(clone)⁻¹`` (003 eq (29)–(32)) by stochastic cloning: the attitude of the
+        earlier epoch is kept in the state with its cross-covariance, so the correlation between
+        the two epochs is not ignored (flag P003-14a, docs/papers.md#p003-14a).
+
+        Parameters
+        ----------
+        state : FilterState
+            Must hold a clone (:meth:`clone`) taken at the earlier epoch of the increment.
+        z : IncrementMeasurement or None
+            One row per trial (or one shared row).  NaN rows, rows with a non-finite covariance,
+            and ``None`` (no increment this epoch) only re-clone those trials.
+
+        Returns
+        -------
+        FilterState
+            The updated state, cloned at its epoch; gating, resets and failures as in
+            :meth:`update_absolute`.
+
+        Raises
+        ------
+        ValueError
+            If ``state`` holds no clone or belongs to another filter, or ``z`` has the wrong
+            number of trials.
+        """
+
+    @abstractmethod
+    def clone(self, state: FilterState) -> FilterState:
+        """Copy the current attitude, with its covariance rows and columns, into the clone slot.
+
+        Parameters
+        ----------
+        state : FilterState
+            With or without a clone (an existing clone is replaced).
+
+        Returns
+        -------
+        FilterState
+            ``q_NT_clone = q_NT``, ``t_clone_s = t_s``; the covariance gains the clone block, an
+            exact copy of the attitude block (so it is only positive semi-definite).
+        """
+
     # ------------------------------------------------------------------ helpers
     def _check_state(self, state: FilterState) -> None:
         if not isinstance(state, FilterState):
@@ -233,10 +335,8 @@ class AttitudeFilter(ABC):
         )
 
     @staticmethod
-    def _measurement_rows(z: ArrayLike | None, M: int, width: int, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """Measurement batch ``(M, width)`` and its validity mask; None or NaN rows are missing."""
-        if z is None:
-            return np.tile(_IDENTITY_Q[:width] if width == 4 else np.zeros(width), (M, 1)), np.zeros(M, bool)
+    def _measurement_rows(z: np.ndarray, M: int, width: int, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Measurement batch ``(M, width)`` and its validity mask; NaN rows are missing."""
         z = np.asarray(z, dtype=float)
         if z.shape == (width,):
             z = np.broadcast_to(z, (M, width))
@@ -262,16 +362,6 @@ class AttitudeFilter(ABC):
         finite = np.isfinite(cov).all((1, 2))
         cov = sym(cov) if finite.all() else np.where(finite[:, None, None], sym(cov), np.eye(3))
         return cov, finite
-
-    @staticmethod
-    def _frame_rows(R: ArrayLike, M: int, name: str) -> np.ndarray:
-        R = as_batch(np.asarray(R, dtype=float), M, (3, 3), name)
-        if not np.all(np.isfinite(R)):
-            raise ValueError(f"{name}: contains non-finite values")
-        err = np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)).max()
-        if err > 1e-6 or np.any(np.linalg.det(R) <= 0):
-            raise ValueError(f"{name}: not a rotation matrix (orthonormality error {err:.2e})")
-        return R
 
     def _gated_update(self, P, r, H, R, valid, G=None):
         """Batched Kalman update with chi-square gating.
@@ -328,27 +418,33 @@ class AttitudeFilter(ABC):
         Pn = IKH @ P @ IKH.mT + K @ R @ K.mT
         return dx, Pn, passed, rejected, nis
 
-    def _absolute_inputs(self, state: FilterState, q_NT_meas, cov_rotvec_T):
+    def _absolute_inputs(self, state: FilterState, z: AbsoluteAttitudeMeasurement | None):
         """Checked rows of an absolute-attitude measurement: ``(z (M, 4), cov (M, 3, 3), valid (M,))``."""
         self._check_state(state)
         M = state.n_trials
-        z, valid = self._measurement_rows(q_NT_meas, M, 4, "q_NT_meas")
-        cov, cov_ok = self._cov_rows(cov_rotvec_T, M, "cov_rotvec_T")
-        return z, cov, valid & cov_ok & ~state.failed
+        if z is None:
+            return np.tile(_IDENTITY_Q, (M, 1)), np.tile(_eye(3), (M, 1, 1)), np.zeros(M, bool)
+        if not isinstance(z, AbsoluteAttitudeMeasurement):
+            raise ValueError(f"z: expected an AbsoluteAttitudeMeasurement or None, got {type(z).__name__}")
+        q, valid = self._measurement_rows(z.q_NT, M, 4, "q_NT")
+        cov, cov_ok = self._cov_rows(z.cov_rotvec_T, M, "cov_rotvec_T")
+        return q, cov, valid & cov_ok & ~state.failed
 
-    def _increment_inputs(self, state: FilterState, dq_H, cov_rotvec_H, R_NH_prev, R_NH_now, cov_side):
+    def _increment_inputs(self, state: FilterState, z: IncrementMeasurement | None):
         """Checked rows of a Hill-frame increment, converted to N: ``(dq_N, cov_N, valid)``."""
         self._check_state(state)
         if not state.has_clone:
             raise ValueError("state: no clone; call clone(state) at the earlier epoch first")
-        if cov_side not in ("left", "right"):
-            raise ValueError(f"cov_side: expected 'left' or 'right', got {cov_side!r}")
         M = state.n_trials
-        dqH, valid = self._measurement_rows(dq_H, M, 4, "dq_H")
-        cov, cov_ok = self._cov_rows(cov_rotvec_H, M, "cov_rotvec_H")
-        Rp = self._frame_rows(R_NH_prev, M, "R_NH_prev")
-        Rn = self._frame_rows(R_NH_now, M, "R_NH_now")
-        dqN, covN = self._increment_in_N(dqH, cov, Rp, Rn, cov_side)
+        if z is None:
+            return np.tile(_IDENTITY_Q, (M, 1)), np.tile(_eye(3), (M, 1, 1)), np.zeros(M, bool)
+        if not isinstance(z, IncrementMeasurement):
+            raise ValueError(f"z: expected an IncrementMeasurement or None, got {type(z).__name__}")
+        dqH, valid = self._measurement_rows(z.dq_H, M, 4, "dq_H")
+        cov, cov_ok = self._cov_rows(z.cov_rotvec_H, M, "cov_rotvec_H")
+        Rp = as_batch(z.R_NH_prev, M, (3, 3), "R_NH_prev")
+        Rn = as_batch(z.R_NH_now, M, (3, 3), "R_NH_now")
+        dqN, covN = self._increment_in_N(dqH, cov, Rp, Rn, z.cov_side)
         return dqN, covN, valid & cov_ok & ~state.failed
 
     @staticmethod

@@ -56,6 +56,7 @@ from attitude.batch import (
 from ._base import AttitudeFilter
 from ._batch import sym
 from .dynamics import _rk4
+from .measurements import AbsoluteAttitudeMeasurement, IncrementMeasurement
 from .noise_mapping import rotation_noise_moments
 from .state import FilterState, ProcessNoise
 
@@ -137,7 +138,7 @@ class AttitudeEKF(AttitudeFilter):
 
     # ------------------------------------------------------------------ propagation
     def predict(self, state: FilterState, dt_s: float) -> FilterState:
-        """Propagate every trial by ``dt_s`` (003 eq 16–17 with FLAG P003-9); a clone stays put."""
+        """003 eq (16)–(17): RK4 on ``[q, ω]`` with the exact Jacobian of the RK4 map."""
         self._check_state(state)
         dt = float(dt_s)
         if not np.isfinite(dt) or dt < 0:
@@ -162,67 +163,30 @@ class AttitudeEKF(AttitudeFilter):
         return self._finish(state, q=q1, w=w1, P=Pn, qc=qc, p=None, t_s=state.t_s + dt, check_pd=False)
 
     # ------------------------------------------------------------------ measurements
-    def update_absolute(self, state: FilterState, q_NT_meas: ArrayLike | None,
-                        cov_rotvec_T: ArrayLike) -> FilterState:
-        """Update with absolute attitude measurements (003 §3.3.8: ``z = q + v``, ``H = [I₄ 0]``).
-
-        Parameters
-        ----------
-        state : FilterState
-        q_NT_meas : (4,) or (M, 4) array or None
-            Measured attitude, ``q_NT ⊗ exp(e/2)``; rows with NaN (or ``None`` for all) are missing
-            and the trial is only propagated.
-        cov_rotvec_T : (3, 3) or (M, 3, 3) array
-            Covariance of the body-frame rotation-vector error ``e`` (rad²).  For an attitude-angle
-            error ``e`` quoted as one number use
-            :func:`filters.noise_mapping.rotvec_covariance_from_angle_error`.
-        """
-        z, cov, valid = self._absolute_inputs(state, q_NT_meas, cov_rotvec_T)
+    def update_absolute(self, state: FilterState, z: AbsoluteAttitudeMeasurement | None) -> FilterState:
+        """003 §3.3.8: additive update ``z = q + v`` with ``H = [I₄ 0]`` and the UT image of the noise."""
+        zq, cov, valid = self._absolute_inputs(state, z)
         q, w, P, qc, _ = self._sanitized(state)
-        z = np.where(np.sum(z * q, axis=1, keepdims=True) < 0, -z, z)
+        zq = np.where(np.sum(zq * q, axis=1, keepdims=True) < 0, -zq, zq)
         Lq = quaternion_left_matrices(q)
         R4 = self._complete(Lq @ self._noise_moments(cov) @ Lq.mT, q)
         G = 2.0 * xi_matrices(q).mT
-        dx, Pn, acc, rej, nis = self._gated_update(P, z - q, None, R4, valid, G=G)
+        dx, Pn, acc, rej, nis = self._gated_update(P, zq - q, None, R4, valid, G=G)
         return self._apply(state, q, w, qc, dx, Pn, acc, rej, nis)
 
-    def update_increment(
-        self,
-        state: FilterState,
-        dq_H: ArrayLike | None,
-        cov_rotvec_H: ArrayLike,
-        R_NH_prev: ArrayLike,
-        R_NH_now: ArrayLike,
-        *,
-        cov_side: Literal["left", "right"] = "left",
-    ) -> FilterState:
-        """Update with the registration increment since the clone, then clone the current attitude.
-
-        Parameters
-        ----------
-        state : FilterState
-            Must hold a clone (:meth:`clone`) taken at the earlier epoch of the increment.
-        dq_H : (4,) or (M, 4) array or None
-            Measured increment ``Δq_H`` with ``R(Δq_H) = R_HT(now) R_HT(prev)ᵀ`` (003 eq 31 in H:
-            ``ρ_H(now) = R(Δq_H) ρ_H(prev)``).  NaN rows / ``None``: missing (only re-clone).
-        cov_rotvec_H : (3, 3) or (M, 3, 3) array
-            Covariance (rad², H components) of the rotation-vector error ``v`` of the increment:
-            ``ΔR_meas = exp([v×]) ΔR_true`` for ``cov_side="left"`` (error in the frame of the later
-            cloud), ``ΔR_true exp([v×])`` for ``"right"``.
-        R_NH_prev, R_NH_now : (3, 3) or (M, 3, 3) arrays
-            Hill frame at the clone epoch and now (``v_N = R_NH v_H``).
-        """
-        dqN, covN, valid = self._increment_inputs(state, dq_H, cov_rotvec_H, R_NH_prev, R_NH_now, cov_side)
+    def update_increment(self, state: FilterState, z: IncrementMeasurement | None) -> FilterState:
+        """Stochastic cloning on the three rotational components of the innovation (module notes)."""
+        dqN, covN, valid = self._increment_inputs(state, z)
         M = state.n_trials
         q, w, P, qc, _ = self._sanitized(state)
         h = quaternion_products(q, quaternion_conjugates(qc))
-        z = np.where(np.sum(dqN * h, axis=1, keepdims=True) < 0, -dqN, dqN)
+        zq = np.where(np.sum(dqN * h, axis=1, keepdims=True) < 0, -dqN, dqN)
         H = np.zeros((M, 4, 11))
         H[:, :, :4] = quaternion_right_matrices(quaternion_conjugates(qc))
         H[:, :, 7:] = quaternion_left_matrices(q) @ _CONJ_DIAG
         # the three rotational components of z − h: z ≈ h + ½ Rm(h)[:, 1:] v  ⇒  v ≈ G (z − h)
         G = 2.0 * quaternion_right_matrices(h)[:, :, 1:].mT
-        r3 = (G @ (z - h)[:, :, None])[:, :, 0]
+        r3 = (G @ (zq - h)[:, :, None])[:, :, 0]
         dx, Pn, acc, rej, nis = self._gated_update(P, r3, G @ H, covN, valid)
         new = self._apply(state, q, w, qc, dx, Pn, acc, rej, nis)
         return self.clone(new)
@@ -240,7 +204,7 @@ class AttitudeEKF(AttitudeFilter):
 
     # ------------------------------------------------------------------ cloning
     def clone(self, state: FilterState) -> FilterState:
-        """Copy the current attitude (and its covariance rows) into the clone slot."""
+        """The clone is the four quaternion components (covariance rows 7–10)."""
         self._check_state(state)
         q, w, P, _, _ = self._sanitized(state)
         M = state.n_trials

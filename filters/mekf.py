@@ -25,8 +25,6 @@ Covariance layout (``state_layout``): ``ax ay az dwx dwy dwz [dp1 dp2] [acx acy 
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -41,6 +39,7 @@ from attitude.batch import (
 
 from ._base import AttitudeFilter
 from .dynamics import _rk4, inertia_ratios_from_inertia
+from .measurements import AbsoluteAttitudeMeasurement, IncrementMeasurement
 from .state import FilterState, ProcessNoise
 
 __all__ = ["MEKF"]
@@ -108,7 +107,7 @@ class MEKF(AttitudeFilter):
 
     # ------------------------------------------------------------------ propagation
     def predict(self, state: FilterState, dt_s: float) -> FilterState:
-        """Propagate nominal state (RK4) and error covariance (RK4 of the variational equation)."""
+        """RK4 on the nominal state and on the variational equation of the error ``[a, δω, (δp)]``."""
         self._check_state(state)
         dt = float(dt_s)
         if not np.isfinite(dt) or dt < 0:
@@ -136,35 +135,17 @@ class MEKF(AttitudeFilter):
         return self._finish(state, q=q1, w=w1, P=Pn, qc=qc, p=p, t_s=state.t_s + dt, check_pd=False)
 
     # ------------------------------------------------------------------ measurements
-    def update_absolute(self, state: FilterState, q_NT_meas: ArrayLike | None,
-                        cov_rotvec_T: ArrayLike) -> FilterState:
-        """Update with absolute attitudes ``z = q_NT ⊗ exp(e/2)``, ``e ~ N(0, cov_rotvec_T)``.
-
-        NaN rows (or ``None``) are missing measurements: those trials are only propagated.
-        """
-        z, cov, valid = self._absolute_inputs(state, q_NT_meas, cov_rotvec_T)
+    def update_absolute(self, state: FilterState, z: AbsoluteAttitudeMeasurement | None) -> FilterState:
+        """Residual ``r = log(q̂⁻¹ ⊗ z)`` with ``H = [I₃ 0 …]``."""
+        zq, cov, valid = self._absolute_inputs(state, z)
         q, w, P, qc, p = self._sanitized(state)
-        r = rotvecs_from_quaternions(quaternion_products(quaternion_conjugates(q), z))
+        r = rotvecs_from_quaternions(quaternion_products(quaternion_conjugates(q), zq))
         dx, Pn, acc, rej, nis = self._gated_update(P, r, None, cov, valid)
         return self._apply(state, q, w, qc, p, dx, Pn, acc, rej, nis)
 
-    def update_increment(
-        self,
-        state: FilterState,
-        dq_H: ArrayLike | None,
-        cov_rotvec_H: ArrayLike,
-        R_NH_prev: ArrayLike,
-        R_NH_now: ArrayLike,
-        *,
-        cov_side: Literal["left", "right"] = "left",
-    ) -> FilterState:
-        """Update with the registration increment since the clone, then clone the current attitude.
-
-        Same arguments as :meth:`filters.AttitudeEKF.update_increment`: ``dq_H`` with
-        ``R(dq_H) = R_HT(now) R_HT(prev)ᵀ``, its rotation-vector covariance in H, and the Hill
-        frame at both epochs; NaN rows / ``None`` are missing epochs (only re-clone).
-        """
-        dqN, covN, valid = self._increment_inputs(state, dq_H, cov_rotvec_H, R_NH_prev, R_NH_now, cov_side)
+    def update_increment(self, state: FilterState, z: IncrementMeasurement | None) -> FilterState:
+        """Residual ``r = log(Δq_N ⊗ (q̂ ⊗ q̂_c⁻¹)⁻¹)``, ``H = [R̂_NT 0 … −R̂_NT]`` (module notes)."""
+        dqN, covN, valid = self._increment_inputs(state, z)
         M = state.n_trials
         q, w, P, qc, p = self._sanitized(state)
         dq_hat = quaternion_products(q, quaternion_conjugates(qc))
@@ -201,7 +182,7 @@ class MEKF(AttitudeFilter):
 
     # ------------------------------------------------------------------ cloning
     def clone(self, state: FilterState) -> FilterState:
-        """Copy the current attitude (error ``a``) into the clone slot, with its covariance rows."""
+        """The clone is the local attitude error ``a`` (covariance rows ``a_c``)."""
         self._check_state(state)
         q, w, P, _, p = self._sanitized(state)
         nc = self._n_core

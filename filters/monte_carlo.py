@@ -39,6 +39,7 @@ from attitude.quaternion import (
 )
 
 from ._base import AttitudeFilter
+from .measurements import AbsoluteAttitudeMeasurement, IncrementMeasurement
 from .metrics import (
     ConvergenceCriterion,
     attitude_error_angle,
@@ -499,10 +500,12 @@ def run_monte_carlo(
     for k in range(1, T):
         state = estimator.predict(state, t[k] - t[k - 1])
         if increments:
-            state = estimator.update_increment(state, meas.values[:, k], meas.cov_rotvec,
-                                               meas.R_NH[k - 1], meas.R_NH[k])
+            state = estimator.update_increment(state, IncrementMeasurement(
+                dq_H=meas.values[:, k], cov_rotvec_H=meas.cov_rotvec,
+                R_NH_prev=meas.R_NH[k - 1], R_NH_now=meas.R_NH[k]))
         else:
-            state = estimator.update_absolute(state, meas.values[:, k], meas.cov_rotvec)
+            state = estimator.update_absolute(state, AbsoluteAttitudeMeasurement(
+                q_NT=meas.values[:, k], cov_rotvec_T=meas.cov_rotvec))
         record(k, state)
 
     ea = attitude_error_angle(q_est, q_true)

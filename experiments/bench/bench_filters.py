@@ -23,6 +23,7 @@ from attitude.rigid_body import propagate_torque_free
 from experiments.bench import BenchRow, duration_row
 from filters import (
     MEKF,
+    AbsoluteAttitudeMeasurement,
     AttitudeEKF,
     MeasurementModel,
     ProcessNoise,
@@ -138,7 +139,7 @@ def run_batched(filt, q0, w0, meas, n_steps):
     st = filt.initial_state(q0, w0, filt.initial_covariance())
     for k in range(1, n_steps + 1):
         st = filt.predict(st, DT_S)
-        st = filt.update_absolute(st, meas.values[:, k], meas.cov_rotvec)
+        st = filt.update_absolute(st, AbsoluteAttitudeMeasurement(meas.values[:, k], meas.cov_rotvec))
     return st
 
 
