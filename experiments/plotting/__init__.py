@@ -1,6 +1,7 @@
 """Plot primitives and the generic sweep overview, drawn with matplotlib (Agg) from stored results."""
 
 from experiments.plotting.primitives import (
+    axes_or_new,
     plot_band,
     plot_cloud,
     plot_histogram,
@@ -13,6 +14,7 @@ from experiments.plotting.primitives import (
 from experiments.plotting.sweep_overview import sweep_overview_figures
 
 __all__ = [
+    "axes_or_new",
     "plot_map",
     "plot_band",
     "plot_time_series",

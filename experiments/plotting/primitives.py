@@ -18,6 +18,7 @@ from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 __all__ = [
+    "axes_or_new",
     "plot_map",
     "plot_band",
     "plot_time_series",
@@ -29,7 +30,8 @@ __all__ = [
 ]
 
 
-def _axes(ax: Axes | None) -> Axes:
+def axes_or_new(ax: Axes | None) -> Axes:
+    """``ax``, or the axes of a new 5 × 4 in figure when ``ax`` is ``None``."""
     if ax is None:
         _, ax = plt.subplots(figsize=(5.0, 4.0), layout="constrained")
     return ax
@@ -57,7 +59,7 @@ def plot_map(values: np.ndarray, x: np.ndarray, y: np.ndarray, *, ax: Axes | Non
     annotate : bool
         Write each cell's value in the cell.
     """
-    ax = _axes(ax)
+    ax = axes_or_new(ax)
     v = np.ma.masked_invalid(np.asarray(values, dtype=float))
     mesh = ax.pcolormesh(_edges(x), _edges(y), v, cmap=cmap, vmin=vmin, vmax=vmax, shading="flat")
     cb = ax.figure.colorbar(mesh, ax=ax)
@@ -78,7 +80,7 @@ def plot_band(x: np.ndarray, center: np.ndarray, lo: np.ndarray | None = None, h
               *, ax: Axes | None = None, label: str = "", xlabel: str = "", ylabel: str = "", title: str = "",
               color: str | None = None) -> Axes:
     """A line with an optional shaded band ``[lo, hi]`` (e.g. median and interquartile range)."""
-    ax = _axes(ax)
+    ax = axes_or_new(ax)
     (line,) = ax.plot(x, center, label=label, color=color)
     if lo is not None and hi is not None:
         ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.25, linewidth=0)
@@ -104,7 +106,7 @@ def plot_time_series(t: np.ndarray, series: np.ndarray, *, ax: Axes | None = Non
                      xlabel: str = "time [s]", ylabel: str = "", title: str = "", alpha: float = 1.0,
                      linewidth: float = 1.0) -> Axes:
     """Lines ``series[..., T]`` (one per row) against ``t``; optional threshold line(s)."""
-    ax = _axes(ax)
+    ax = axes_or_new(ax)
     s = np.atleast_2d(np.asarray(series, dtype=float))
     for i, row in enumerate(s):
         ax.plot(t, row, label=None if labels is None else labels[i], alpha=alpha, linewidth=linewidth)
@@ -127,7 +129,7 @@ def plot_timeline(t: np.ndarray, active: np.ndarray, names: Sequence[str], *, ax
                   shade: np.ndarray | None = None, shade_label: str = "") -> Axes:
     """Active-observer timeline: one row per observer, filled where ``active[T, S]``; epochs where
     ``shade[T]`` is true (e.g. Earth's shadow) are shaded grey."""
-    ax = _axes(ax)
+    ax = axes_or_new(ax)
     a = np.asarray(active, dtype=bool)
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     if shade is not None:
@@ -153,7 +155,7 @@ def plot_timeline(t: np.ndarray, active: np.ndarray, names: Sequence[str], *, ax
 def plot_image_tracks(image: np.ndarray, uv_px: np.ndarray, correct: np.ndarray | None = None, *, ax: Axes | None = None,
                       title: str = "") -> Axes:
     """An image with its track positions (green: correct per ground truth, red: false match)."""
-    ax = _axes(ax)
+    ax = axes_or_new(ax)
     ax.imshow(image, cmap="gray", vmin=0, vmax=255)
     uv = np.asarray(uv_px, dtype=float)
     ok = np.isfinite(uv).all(-1)
@@ -190,7 +192,7 @@ def plot_cloud(X: np.ndarray, *, ax: Axes | None = None, title: str = "", color:
 def plot_histogram(values: np.ndarray, *, ax: Axes | None = None, bins: int = 30, label: str = "", xlabel: str = "",
                    vline: float | None = None, vline_label: str = "") -> Axes:
     """Histogram of finite ``values`` with an optional reference line."""
-    ax = _axes(ax)
+    ax = axes_or_new(ax)
     v = np.asarray(values, dtype=float)
     ax.hist(v[np.isfinite(v)], bins=bins, alpha=0.6, label=label)
     if vline is not None and np.isfinite(vline):

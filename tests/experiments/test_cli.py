@@ -51,3 +51,10 @@ def test_tumble_conserves_momentum_in_its_report():
     assert res.exit_code == 0
     drift = float(res.output.split("|L_N| drift: ")[1].split(" ")[0])
     assert drift < 1e-12
+
+
+def test_figures_unknown_topic_exits_2_naming_the_argument(tmp_path):
+    res = runner.invoke(app, ["figures", "nope", "--out", str(tmp_path)])
+    assert res.exit_code == 2
+    assert "topic" in res.output and "orbits" in res.output
+    assert not any(tmp_path.iterdir())

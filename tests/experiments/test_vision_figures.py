@@ -6,7 +6,7 @@ matplotlib.use("Agg")
 
 import numpy as np  # noqa: E402
 
-from experiments.plots_vision import plot_matched_views  # noqa: E402
+from experiments.studies.vision_figures import plot_matched_views  # noqa: E402
 
 
 def test_plot_matched_views_draws_keypoints_and_connection_lines():

@@ -1,16 +1,16 @@
-"""Vision figures: rendered views from several cameras with their cross-view matches.
+"""Docs figures of ``vision``: rendered views from several cameras with their cross-view matches.
 
 Plot functions take ``ax``/``axes=None`` (a new figure when omitted), return the axes, and compute
 nothing. :func:`three_view_data` renders the issue-5 scene (FY-1-like target at 50 m, three 1024-px
 20° cameras on the 003 §3.6 cone with pairwise axis angle 10°, Sun from the side) and matches it;
-the docs figure is made with::
+:func:`draw_vision_figures` writes the docs figure::
 
-    .venv/bin/python -m experiments.plots_vision docs/figures/vision_three_views.png
+    coobs figures vision --out docs/figures
 """
 
 from __future__ import annotations
 
-import sys
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,9 +20,12 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.patches import ConnectionPatch  # noqa: E402
 
-__all__ = ["ThreeViewData", "plot_matched_views", "plot_view", "three_view_data"]
+__all__ = ["ThreeViewData", "plot_matched_views", "plot_view", "three_view_data", "three_view_figure",
+           "draw_vision_figures"]
 
 
 @dataclass(frozen=True)
@@ -59,7 +62,8 @@ def three_view_data(*, distance_m: float = 50.0, angle_deg: float = 10.0, seed: 
                          angle_deg)
 
 
-def plot_view(image, *, roi=None, ax=None, title: str | None = None):
+def plot_view(image: np.ndarray, *, roi: tuple[int, int, int, int] | None = None, ax: Axes | None = None,
+              title: str | None = None) -> Axes:
     """Show one grey image (optionally cropped to ``roi = (x0, y0, x1, y1)``) in pixel coordinates."""
     if ax is None:
         _, ax = plt.subplots(figsize=(4.0, 4.0), layout="constrained")
@@ -73,8 +77,10 @@ def plot_view(image, *, roi=None, ax=None, title: str | None = None):
     return ax
 
 
-def plot_matched_views(images, uv_px, feature_id, *, rois=None, axes=None, max_lines: int = 60,
-                       titles=None, rng_seed: int = 0):
+def plot_matched_views(images: Sequence[np.ndarray], uv_px: np.ndarray, feature_id: np.ndarray, *,
+                       rois: Sequence[tuple[int, int, int, int]] | None = None,
+                       axes: Sequence[Axes] | None = None, max_lines: int = 60,
+                       titles: Sequence[str] | None = None, rng_seed: int = 0) -> list[Axes]:
     """Views side by side with the tracks' keypoints and lines joining each track across views.
 
     Parameters
@@ -115,7 +121,7 @@ def plot_matched_views(images, uv_px, feature_id, *, rois=None, axes=None, max_l
     return axes
 
 
-def three_view_figure(data: ThreeViewData):
+def three_view_figure(data: ThreeViewData) -> Figure:
     """The docs figure from :func:`three_view_data`."""
     obs = data.observation
     n_ok = int(np.sum(obs.feature_id >= 0))
@@ -130,13 +136,11 @@ def three_view_figure(data: ThreeViewData):
     return fig
 
 
-def main(argv: list[str] | None = None) -> None:  # pragma: no cover - documented script
-    args = sys.argv[1:] if argv is None else argv
-    out = Path(args[0] if args else "vision_three_views.png")
+def draw_vision_figures(out_dir: Path) -> list[Path]:
+    """Render and match the three-view scene and write its docs figure, ``out_dir/vision_three_views.png``."""
+    out = Path(out_dir) / "vision_three_views.png"
     out.parent.mkdir(parents=True, exist_ok=True)
-    three_view_figure(three_view_data()).savefig(out, dpi=110)
-    print(f"wrote {out}")
-
-
-if __name__ == "__main__":  # pragma: no cover
-    main()
+    fig = three_view_figure(three_view_data())
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return [out]

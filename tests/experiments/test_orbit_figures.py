@@ -1,4 +1,4 @@
-"""Smoke-and-substance test of the orbit figures (experiments.plots_orbits)."""
+"""Smoke-and-substance test of the orbit figures (experiments.studies.orbit_figures)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from experiments.plots_orbits import cw_error_growth_data, cw_error_growth_figure  # noqa: E402
+from experiments.studies.orbit_figures import cw_error_growth_data, cw_error_growth_figure  # noqa: E402
 
 
 def test_cw_error_growth_study_scales_with_size_squared_and_draws():

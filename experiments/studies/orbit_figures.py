@@ -1,15 +1,15 @@
-"""Orbit figures: CW error growth against separation and time, relative trajectories.
+"""Docs figures of ``orbits``: CW error growth against separation and time, relative trajectories.
 
 Plot functions take ``ax=None`` (a new figure when omitted), return the axes, and compute
 nothing.  :func:`cw_error_growth_data` computes the study (through :func:`orbits.cw.cw_error`)
-and :func:`cw_error_growth_figure` draws it; the docs figure is made with::
+and :func:`cw_error_growth_figure` draws it; :func:`draw_orbit_figures` writes the docs figure::
 
-    .venv/bin/python -m experiments.plots_orbits docs/figures/cw_error_growth.png
+    coobs figures orbits --out docs/figures
 """
 
 from __future__ import annotations
 
-import sys
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,6 +19,10 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from experiments.plotting import axes_or_new  # noqa: E402
 
 __all__ = [
     "CwErrorGrowth",
@@ -27,13 +31,8 @@ __all__ = [
     "plot_cw_error_vs_separation",
     "plot_relative_trajectory",
     "cw_error_growth_figure",
+    "draw_orbit_figures",
 ]
-
-
-def _axes(ax):
-    if ax is None:
-        _, ax = plt.subplots(figsize=(5.0, 4.0), layout="constrained")
-    return ax
 
 
 @dataclass(frozen=True)
@@ -58,7 +57,7 @@ class CwErrorGrowth:
     error_m: np.ndarray
 
 
-def cw_error_growth_data(*, a_m: float = 6721.2e3, semi_major_m=(10, 25, 50, 100, 250, 500, 1000),
+def cw_error_growth_data(*, a_m: float = 6721.2e3, semi_major_m: Sequence[float] = (10, 25, 50, 100, 250, 500, 1000),
                          orbits: float = 5.0, epochs: int = 501, phases: int = 12,
                          cross_track_ratio: float = 1.0) -> CwErrorGrowth:
     """CW position error against Kepler truth for natural-motion circumnavigations.
@@ -79,9 +78,10 @@ def cw_error_growth_data(*, a_m: float = 6721.2e3, semi_major_m=(10, 25, 50, 100
     return CwErrorGrowth(a_m, t * n / (2 * np.pi), sizes, err)
 
 
-def plot_cw_error_vs_time(t_orbits, semi_major_m, error_m, *, ax=None, threshold_m=None):
+def plot_cw_error_vs_time(t_orbits: np.ndarray, semi_major_m: np.ndarray, error_m: np.ndarray, *,
+                          ax: Axes | None = None, threshold_m: float | None = None) -> Axes:
     """Lines of CW position error (m, log scale) against time (chief orbits), one per size."""
-    ax = _axes(ax)
+    ax = axes_or_new(ax)
     cmap = plt.get_cmap("viridis")
     for k, s in enumerate(semi_major_m):
         ax.semilogy(t_orbits[1:], error_m[k, 1:], color=cmap(k / max(len(semi_major_m) - 1, 1)),
@@ -95,9 +95,10 @@ def plot_cw_error_vs_time(t_orbits, semi_major_m, error_m, *, ax=None, threshold
     return ax
 
 
-def plot_cw_error_vs_separation(semi_major_m, errors_m, labels, *, ax=None, threshold_m=None):
+def plot_cw_error_vs_separation(semi_major_m: np.ndarray, errors_m: Sequence[np.ndarray], labels: Sequence[str], *,
+                                ax: Axes | None = None, threshold_m: float | None = None) -> Axes:
     """Log-log CW position error against relative-orbit size; ``errors_m[j]`` is one curve."""
-    ax = _axes(ax)
+    ax = axes_or_new(ax)
     for e, lab in zip(errors_m, labels, strict=True):
         ax.loglog(semi_major_m, e, "o-", ms=3, label=lab)
     if threshold_m is not None:
@@ -109,9 +110,10 @@ def plot_cw_error_vs_separation(semi_major_m, errors_m, labels, *, ax=None, thre
     return ax
 
 
-def plot_relative_trajectory(r_H, *, ax=None, axes=(1, 0), label=None):
+def plot_relative_trajectory(r_H: np.ndarray, *, ax: Axes | None = None, axes: tuple[int, int] = (1, 0),
+                             label: str | None = None) -> Axes:
     """Relative trajectory in H projected on two axes (default along-track y vs radial x), m."""
-    ax = _axes(ax)
+    ax = axes_or_new(ax)
     names = ("x radial (m)", "y along-track (m)", "z cross-track (m)")
     ax.plot(r_H[..., axes[0]], r_H[..., axes[1]], label=label)
     ax.set_xlabel(names[axes[0]])
@@ -120,7 +122,7 @@ def plot_relative_trajectory(r_H, *, ax=None, axes=(1, 0), label=None):
     return ax
 
 
-def cw_error_growth_figure(data: CwErrorGrowth, *, threshold_m: float = 0.02):
+def cw_error_growth_figure(data: CwErrorGrowth, *, threshold_m: float = 0.02) -> Figure:
     """Two panels: error vs time per size, and error vs size after 1, 2 and 5 orbits."""
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10.0, 4.0), layout="constrained")
     plot_cw_error_vs_time(data.t_orbits, data.semi_major_m, data.error_m, ax=a1, threshold_m=threshold_m)
@@ -133,14 +135,11 @@ def cw_error_growth_figure(data: CwErrorGrowth, *, threshold_m: float = 0.02):
     return fig
 
 
-def main(argv: list[str] | None = None) -> None:  # pragma: no cover - documented script
-    argv = sys.argv[1:] if argv is None else argv
-    out = Path(argv[0]) if argv else Path("docs/figures/cw_error_growth.png")
+def draw_orbit_figures(out_dir: Path) -> list[Path]:
+    """Compute the CW error-growth study and write its docs figure, ``out_dir/cw_error_growth.png``."""
+    out = Path(out_dir) / "cw_error_growth.png"
     out.parent.mkdir(parents=True, exist_ok=True)
     fig = cw_error_growth_figure(cw_error_growth_data())
     fig.savefig(out, dpi=120)
     plt.close(fig)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    main()
+    return [out]
