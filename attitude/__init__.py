@@ -1,11 +1,6 @@
-"""Rotation mathematics shared by every package, and torque-free rigid-body motion.
+"""Rotations (quaternions, matrices, Euler angles, Gibbs vectors) and torque-free rigid-body motion."""
 
-Conventions (ARCHITECTURE §2, ``docs/conventions.md``): Hamilton quaternions, scalar first
-``[w, x, y, z]``; ``R_AB = matrix_from_quat(q_AB)`` maps B-components to A-components;
-``R(q_AB ⊗ q_BC) = R_AB R_BC``; ``q̇_NB = ½ q_NB ⊗ [0, ω_B]``.  Paper 001's Shuster-convention
-Gibbs algebra lives in :mod:`attitude.gibbs` under explicit ``shuster_`` names.
-"""
-
+from attitude import batch
 from attitude.euler import euler_from_matrix, matrix_from_euler
 from attitude.gibbs import (
     best_gibbs_set,
@@ -42,8 +37,11 @@ from attitude.quaternion import (
     skew,
 )
 from attitude.rigid_body import angular_momentum_N, kinetic_energy, propagate_torque_free
+from attitude.testing import assert_quat_equal
 
 __all__ = [
+    "assert_quat_equal",
+    "batch",
     "best_gibbs_set",
     "check_quat",
     "check_rotation_matrix",

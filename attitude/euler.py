@@ -3,7 +3,7 @@
 Angles are given in sequence order and the matrix is the active ``R_AB`` (body B to reference A):
 
 * ``"321"`` (yaw ψ, pitch θ, roll φ): ``R_AB = R_z(ψ) R_y(θ) R_x(φ)``; gimbal lock at θ = ±90°.
-  This is the reading of 001 Table 1 that reproduces its failure time (SEEDS_SPEC flag P001-5).
+  This is the reading of 001 Table 1 that reproduces its failure time (flag P001-5, docs/papers.md#p001-5).
 * ``"312"`` (yaw ψ, roll φ, pitch θ): ``R_AB = R_z(ψ) R_x(φ) R_y(θ)``; gimbal lock at φ = ±90°.
   This is the sequence implied by 004 eq (9)–(11) in the corrected form of flags P004-2/P004-3:
   004's ``R_ob`` is the frame-rotation (Shuster) matrix ``R_y(θ) R_x(φ) R_z(ψ)`` of passive

@@ -1,6 +1,6 @@
 """Gibbs vectors (classical Rodrigues parameters) and modified Rodrigues parameters.
 
-Two conventions meet here, and are kept apart by name (SEEDS_SPEC §5, flag P001-3):
+Two conventions meet here, and are kept apart by name (flag P001-3, docs/papers.md#p001-3):
 
 * **Hamilton (project convention).** For ``q_AB = [w, v]`` the Gibbs vector is ``g = v / w =
   n tan(θ/2)`` and its active matrix is ``R_AB = matrix_from_gibbs(g) =
@@ -17,7 +17,7 @@ Two conventions meet here, and are kept apart by name (SEEDS_SPEC §5, flag P001
 Switching (001 §2): the set ``i`` uses as denominator the quaternion component ``q4`` (i = 0) or
 ``q_i`` (i = 1, 2, 3); whenever some ``|g_j| > 1`` the set is switched with ``T_j``, after which
 every ``|g_j| <= 1`` and the rotation relative to the active reference frame ``r^(i)`` is at most
-120° (SEEDS_SPEC §2.3, Appendix A.3).
+120° (001 eq (4)–(5); ``tests/attitude/test_gibbs.py`` checks it on random samples).
 """
 
 from __future__ import annotations
@@ -103,7 +103,7 @@ def shuster_from_quat(q: ArrayLike) -> np.ndarray:
     """Shuster scalar-last quaternion ``[q1, q2, q3, q4]`` of the project's ``q_AB = [w, x, y, z]``.
 
     The four numbers are the same; Shuster's attitude matrix of the result is ``A = R_ABᵀ``
-    (it maps A-components to B-components, SEEDS_SPEC flag P001-3).
+    (it maps A-components to B-components; flag P001-3, docs/papers.md#p001-3).
     """
     q = check_quat(q, name="q", unit=False)
     return np.concatenate([q[..., 1:], q[..., :1]], -1)
@@ -181,7 +181,7 @@ def gibbs_set_from_quat(q: ArrayLike, i: ArrayLike) -> np.ndarray:
 def best_gibbs_set(q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """The parameter set whose denominator is the largest-magnitude quaternion component.
 
-    Returns ``(g, i)``; every ``|g_j| <= 1`` (Shuster's MSR criterion, SEEDS_SPEC Appendix A.3).
+    Returns ``(g, i)``; every ``|g_j| <= 1`` (Shuster's MSR criterion, 001 eq (5)).
     """
     q_s = shuster_from_quat(check_quat(q, name="q", unit=False))
     k = np.argmax(np.abs(q_s), axis=-1)  # 0..2 → q1..q3, 3 → q4
@@ -192,7 +192,7 @@ def best_gibbs_set(q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
 def quat_from_gibbs_set(g: ArrayLike, i: ArrayLike) -> np.ndarray:
     """Hamilton ``q_AB`` (canonical sign) of the parameter set ``(g, i)``.
 
-    ``q^(i) = q ⊗_S e_i`` (SEEDS_SPEC A.3), so ``q = q^(i) ⊗_S e_i⁻¹`` with ``q^(i) = [g, 1]/√(1+|g|²)``.
+    ``q^(i) = q ⊗_S e_i`` (001 eq (4)), so ``q = q^(i) ⊗_S e_i⁻¹`` with ``q^(i) = [g, 1]/√(1+|g|²)``.
     """
     g = check_vec3(g, name="g")
     i = np.broadcast_to(np.asarray(i), g.shape[:-1])
@@ -232,7 +232,7 @@ def gibbs_switch(g: ArrayLike, i: ArrayLike, *, eta: float = 0.0) -> tuple[np.nd
     """001 switching rule: if the largest ``|g_j|`` exceeds ``1 + eta``, apply ``T_j``.
 
     The new set index is ``j`` if ``i = 0``, ``0`` if ``j = i``, and ``6 − j − i`` otherwise
-    (001 eq 5).  ``eta > 0`` adds the hysteresis suggested in SEEDS_SPEC §2.3 (η = 0.05) so the set
+    (001 eq 5).  ``eta > 0`` adds a hysteresis (the paper has none; η = 0.05 is a good choice) so the set
     does not alternate when ``|g_j| ≈ 1``.  Returns ``(g', i')``; with ``eta = 0`` every ``|g'_j| <= 1``.
     """
     if eta < 0:

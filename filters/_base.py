@@ -52,7 +52,7 @@ class AttitudeFilter(ABC):
         gate_probability: float | None = 0.9999,
         reset_after_rejections: int | None = 10,
         n_substeps: int = 1,
-    ):
+    ) -> None:
         self.J_kg_m2 = check_inertia(J_kg_m2, name="J_kg_m2")
         self._inertia = _Inertia(J=self.J_kg_m2)
         self.process_noise = ProcessNoise() if process_noise is None else process_noise

@@ -1,29 +1,30 @@
 """The paper's 7-state additive-quaternion EKF (003 §2, eq 14–32), batched over trials.
 
 State ``x = [q_NT, ω_TN_T]`` (003 eq 23), additive update of the four quaternion components
-followed by renormalisation, with the corrections of SEEDS_SPEC:
+followed by renormalisation, with these corrections (docs/papers.md, paper 003):
 
-* the prediction carries no noise realisation (FLAG P003-9): ``x'_k = f(x_{k−1})``;
-* propagation by RK4 with the exact Jacobian of the RK4 map (§3.3.7; :mod:`filters.dynamics`);
+* the prediction carries no noise realisation (flag P003-9, docs/papers.md#p003-9):
+  ``x'_k = f(x_{k−1})``;
+* propagation by RK4 with the exact Jacobian of the RK4 map (:mod:`filters.dynamics`);
 * the measured quaternion's sign is chosen so that ``z · q̂ ≥ 0`` and the quaternion is
-  renormalised after each update (FLAG P003-14b);
+  renormalised after each update (flag P003-14b, docs/papers.md#p003-14b);
 * the 4×4 measurement covariance from the unscented transform has rank 3 (nothing along ``q``).
-  SEEDS_SPEC §3.7 suggests adding a ``1e-12 I`` jitter; that makes the filter badly overconfident
+  Completing it with only a ``1e-12 I`` jitter makes the filter badly overconfident
   (measured: average NEES ≈ 5000 instead of 6 over 100 runs), because the norm direction of the
   innovation, ``≈ −θ²/8`` for an angle θ between ``z`` and ``q̂``, is then read as a precise
   measurement and leaks into ω through the cross-covariances.  By default the missing direction
   is filled with the tangential variance, ``R = R_UT + (tr R_UT / 3) q̂ q̂ᵀ`` (``radial="isotropic"``;
-  for isotropic noise this is ``σ_axis²/4 I₄``, the covariance of the spec author's check
-  script ``ekf003.py``); ``radial="jitter"`` keeps the literal §3.7 form;
+  for isotropic noise this is ``σ_axis²/4 I₄``); ``radial="jitter"`` keeps the jitter-only form;
 * the update is in Joseph form (remark under eq 21).
 
 Measurements
 ------------
 (a) :meth:`AttitudeEKF.update_absolute`: an absolute attitude ``z = q_NT ⊗ exp(e/2)``, ``e`` a
     body-frame rotation-vector error with covariance ``cov_rotvec_T``; ``H = [I₄ 0]`` (the paper's
-    simulation, §3.3.8) and ``R`` the unscented-transform image of ``cov_rotvec_T``.
+    simulation, 003 Experiments B–D) and ``R`` the unscented-transform image of ``cov_rotvec_T``.
 (b) :meth:`AttitudeEKF.update_increment`: the rotation increment between the last cloned epoch and
-    now, measured by registration in the rotating Hill frame H (003 eq 29–32, ARCHITECTURE §2).
+    now, measured by registration in the rotating Hill frame H (003 eq 29–32; frames in
+    ``docs/conventions.md``).
     It is converted to N, ``Δq_N = q_NH(now) ⊗ Δq_H ⊗ q_NH(prev)⁻¹``, and compared with
     ``h(x) = q_NT(now) ⊗ q_NT(clone)⁻¹`` (eq 32) by stochastic cloning: the attitude of the earlier
     epoch is a copy kept in the state, with its cross-covariance, so the two-epoch measurement is
@@ -71,7 +72,7 @@ class AttitudeEKF(AttitudeFilter):
     Parameters
     ----------
     J_kg_m2 : (3, 3) array
-        Target inertia tensor (kg·m²), known to the filter (003 eq 27; FLAG P003-14c).
+        Target inertia tensor (kg·m²), known to the filter (003 eq 27; flag P003-14c, docs/papers.md#p003-14c).
     process_noise : ProcessNoise, optional
         Spectral densities; the attitude part enters the quaternion block as ``¼ Ξ Σ Ξᵀ``.
     gate_probability : float or None
@@ -84,9 +85,10 @@ class AttitudeEKF(AttitudeFilter):
     radial : {"isotropic", "jitter"}
         How the rank-3 quaternion measurement covariance is completed along the predicted
         measurement: with the mean tangential variance (default, consistent) or only with
-        ``measurement_jitter`` (SEEDS_SPEC §3.7 literally; overconfident, see the module notes).
+        ``measurement_jitter`` (overconfident, see the module notes; flag P003-14b,
+        docs/papers.md#p003-14b).
     measurement_jitter : float
-        Added to the diagonal of the quaternion measurement covariance (FLAG P003-14b).
+        Added to the diagonal of the quaternion measurement covariance (flag P003-14b, docs/papers.md#p003-14b).
     n_substeps : int
         RK4 sub-steps per :meth:`predict`.
     """
@@ -97,7 +99,7 @@ class AttitudeEKF(AttitudeFilter):
     def __init__(self, *, J_kg_m2: ArrayLike, process_noise: ProcessNoise | None = None,
                  gate_probability: float | None = 0.9999, reset_after_rejections: int | None = 10,
                  radial: Literal["isotropic", "jitter"] = "isotropic",
-                 measurement_jitter: float = 1e-12, n_substeps: int = 1):
+                 measurement_jitter: float = 1e-12, n_substeps: int = 1) -> None:
         super().__init__(J_kg_m2=J_kg_m2, process_noise=process_noise,
                          gate_probability=gate_probability,
                          reset_after_rejections=reset_after_rejections, n_substeps=n_substeps)
@@ -131,7 +133,7 @@ class AttitudeEKF(AttitudeFilter):
 
     def initial_covariance(self, *, sigma_q: float = 0.1, sigma_omega_rad_s: float = np.deg2rad(0.1)
                            ) -> np.ndarray:
-        """003 eq (35): ``P0 = diag(σ_q² I₄, σ_ω² I₃)`` (FLAG P003-13: the paper calls it Q)."""
+        """003 eq (35): ``P0 = diag(σ_q² I₄, σ_ω² I₃)`` (flag P003-13, docs/papers.md#p003-13: the paper calls it Q)."""
         _check_sigma(sigma_q, "sigma_q")
         _check_sigma(sigma_omega_rad_s, "sigma_omega_rad_s")
         return np.diag(np.r_[np.full(4, sigma_q**2), np.full(3, sigma_omega_rad_s**2)])
@@ -164,7 +166,7 @@ class AttitudeEKF(AttitudeFilter):
 
     # ------------------------------------------------------------------ measurements
     def update_absolute(self, state: FilterState, z: AbsoluteAttitudeMeasurement | None) -> FilterState:
-        """003 §3.3.8: additive update ``z = q + v`` with ``H = [I₄ 0]`` and the UT image of the noise."""
+        """003's additive update ``z = q + v`` with ``H = [I₄ 0]`` and the UT image of the noise."""
         zq, cov, valid = self._absolute_inputs(state, z)
         q, w, P, qc, _ = self._sanitized(state)
         zq = np.where(np.sum(zq * q, axis=1, keepdims=True) < 0, -zq, zq)

@@ -15,7 +15,7 @@ One step of the classical Runge–Kutta scheme is taken on the nominal state and
 stages, on the linear variational equation ``Φ̇ = A(x(t)) Φ``.  For the 7-state additive filter
 (``jacobian="quaternion"``) this Φ is exactly the Jacobian of the discrete RK4 map (Runge–Kutta
 methods commute with differentiation), which is the ``F_{k−1}`` of 003 eq (17), (22) with the
-continuous Jacobian of SEEDS_SPEC §3.3.7:
+continuous Jacobian of 003 eq (25)–(27) (the paper does not print it):
 
 .. math::
     A = \\begin{bmatrix}\\tfrac12\\Omega(\\omega) & \\tfrac12\\Xi(q)\\\\ 0 & J^{-1}([J\\omega\\times]-[\\omega\\times]J)\\end{bmatrix}
@@ -64,7 +64,7 @@ def inertia_ratios_from_inertia(J_kg_m2: ArrayLike) -> np.ndarray:
 
 
 def euler_rate_jacobian(omega_TN_T: ArrayLike, J_kg_m2: ArrayLike) -> np.ndarray:
-    """``∂ω̇/∂ω = J⁻¹([Jω×] − [ω×] J)`` (SEEDS_SPEC §3.3.7), ``(..., 3, 3)``."""
+    """``∂ω̇/∂ω = J⁻¹([Jω×] − [ω×] J)``, the derivative of 003 eq (27); ``(..., 3, 3)``."""
     w = np.asarray(omega_TN_T, dtype=float)
     J = np.asarray(J_kg_m2, dtype=float)
     Jw = np.einsum("...ij,...j->...i", J, w)
@@ -169,8 +169,8 @@ def propagate_rk4(
     Returns
     -------
     q_NT : (M, 4) array
-        Propagated attitude, renormalised (FLAG P003-14b; the Jacobian is that of the map before
-        renormalisation, as in 003's filter).
+        Propagated attitude, renormalised (flag P003-14b, docs/papers.md#p003-14b; the Jacobian
+        is that of the map before renormalisation, as in 003's filter).
     omega_TN_T : (M, 3) array
     Phi : (M, n, n) array or None
         Transition matrix over the whole step.

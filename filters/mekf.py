@@ -1,13 +1,13 @@
 """Multiplicative (error-state) EKF for a tumbling target, optionally estimating inertia ratios.
 
-Not in paper 003 (FLAG P003-14b names it as the standard alternative to the additive quaternion
-update).  The nominal state is ``[q_NT, ω_TN_T, (p)]``; the filter's covariance is on the error
+Not in paper 003 (flag P003-14b, docs/papers.md#p003-14b, names it as the standard alternative
+to the additive quaternion update).  The nominal state is ``[q_NT, ω_TN_T, (p)]``; the filter's covariance is on the error
 
 * ``a`` — local attitude error, ``q_true = q̂ ⊗ exp(a/2)`` (rad, T components);
 * ``δω = ω_true − ω̂`` (rad/s);
 * ``δp = p_true − p̂`` with ``p = (J_yy/J_xx, J_zz/J_xx)`` when ``estimate_inertia_ratios=True``
-  (FLAG P003-14c: for a non-cooperative target J is unknown; T is taken along the principal axes,
-  and only the two ratios enter Euler's equation 003 eq 27);
+  (flag P003-14c, docs/papers.md#p003-14c: for a non-cooperative target J is unknown; T is
+  taken along the principal axes, and only the two ratios enter Euler's equation 003 eq 27);
 * ``a_c`` — the local error of the cloned attitude, when a clone is held.
 
 After each update the correction is folded into the nominal quaternion (``q̂ ← q̂ ⊗ exp(δa/2)``)
@@ -68,8 +68,8 @@ class MEKF(AttitudeFilter):
     _n_clone = 3
 
     def __init__(self, *, J_kg_m2: ArrayLike, estimate_inertia_ratios: bool = False,
-                 process_noise: ProcessNoise | None = None, gate_probability: float | None = 0.9999, reset_after_rejections: int | None = 10,
-                 n_substeps: int = 1):
+                 process_noise: ProcessNoise | None = None, gate_probability: float | None = 0.9999,
+                 reset_after_rejections: int | None = 10, n_substeps: int = 1) -> None:
         super().__init__(J_kg_m2=J_kg_m2, process_noise=process_noise,
                          gate_probability=gate_probability,
                          reset_after_rejections=reset_after_rejections, n_substeps=n_substeps)

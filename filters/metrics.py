@@ -37,7 +37,8 @@ def _nan_rows(q: np.ndarray) -> np.ndarray:
 def attitude_error_angle(q_est: ArrayLike, q_true: ArrayLike) -> np.ndarray:
     """Rotation angle (rad, in [0, π]) of ``q_est⁻¹ ⊗ q_true``; sign-invariant; NaN rows stay NaN.
 
-    This is the attitude error SEEDS_SPEC §3.7 recommends, ``2 arcsin‖δq_v‖``.
+    ``2 arcsin‖δq_v‖``: unlike 003 eq (36) it has no gimbal lock (flag P003-14d,
+    docs/papers.md#p003-14d).
     """
     qe = np.asarray(q_est, dtype=float)
     qt = np.asarray(q_true, dtype=float)
@@ -51,8 +52,8 @@ def euler_angle_error(q_est: ArrayLike, q_true: ArrayLike, *, seq: Literal["321"
                       ) -> np.ndarray:
     """003 eq (36): ``e_θ = ‖θ̂ − θ‖₂`` over the three Euler angles of ``R_NT`` (rad).
 
-    The paper does not say which angles (FLAG P003-14d); SEEDS_SPEC §3.7 suggests the 3-2-1
-    (yaw, pitch, roll) angles of ``D(q) = R_NT``.  Each difference is wrapped to ``(−π, π]``.
+    The paper does not say which angles (flag P003-14d, docs/papers.md#p003-14d); these are the
+    3-2-1 (yaw, pitch, roll) angles of ``D(q) = R_NT``.  Each difference is wrapped to ``(−π, π]``.
     Near gimbal lock the individual angles are ill-defined and this error can be large while the
     rotation-angle error is small; prefer :func:`attitude_error_angle` for judging convergence.
     """
@@ -75,7 +76,7 @@ def rate_error(omega_est: ArrayLike, omega_true: ArrayLike) -> np.ndarray:
 
 @dataclass(frozen=True)
 class ConvergenceCriterion:
-    """When a run counts as converged (SEEDS_SPEC §3.7; the paper gives no threshold).
+    """When a run counts as converged (the paper gives no threshold: flag P003-15, docs/papers.md#p003-15).
 
     Converged if, for the last ``hold_s`` seconds of the run, the attitude error stays below
     ``attitude_deg`` **and** the rate error below ``rate_deg_s``.  The convergence time is the
@@ -98,7 +99,7 @@ class ConvergenceCriterion:
     hold_s: float = 10.0
     attitude_metric: Literal["angle", "euler321"] = "angle"
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("attitude_deg", "rate_deg_s"):
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:

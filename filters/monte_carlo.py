@@ -9,15 +9,17 @@ vectorised loop over epochs.
 
 Measurement kinds (:class:`MeasurementModel`):
 
-* ``"absolute"``  — the paper's simulation (003 §3.3): ``z_k = q_NT(t_k) ⊗ exp(e/2)``;
+* ``"absolute"``  — the paper's simulation (003 Experiments B–D): ``z_k = q_NT(t_k) ⊗ exp(e/2)``;
 * ``"increment"`` — the paper's pipeline: the registration increment between consecutive
   epochs in the rotating Hill frame, ``ΔR_H = exp([v×]) R_HT(t_k) R_HT(t_{k−1})ᵀ``, processed with
   stochastic cloning;
 * ``"chained_absolute"`` — increments chained into an absolute attitude, ``z_k = Δq_N ⊗ z_{k−1}``,
-  fed to the filter as if independent with constant covariance: the naive treatment of FLAG
-  P003-14a, kept to show why cloning is needed (its error grows like a random walk).
+  fed to the filter as if independent with constant covariance: the naive treatment of flag
+  P003-14a (docs/papers.md#p003-14a), kept to show why cloning is needed (its error grows like a
+  random walk).
 
-``e`` and ``v`` are isotropic with σ_axis = angle_error/√3 (SEEDS_SPEC §3.7).
+``e`` and ``v`` are isotropic with σ_axis = angle_error/√3 (the quoted angle error is the 2-norm
+of the three axes, :func:`filters.noise_mapping.rotvec_covariance_from_angle_error`).
 """
 
 from __future__ import annotations
@@ -98,7 +100,7 @@ class MeasurementModel:
     outlier_angle_deg: tuple[float, float] = (10.0, 180.0)
     orbit_rate_rad_s: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.kind not in ("absolute", "increment", "chained_absolute"):
             raise ValueError(f"kind: expected 'absolute', 'increment' or 'chained_absolute', got {self.kind!r}")
         if not np.isfinite(self.angle_error_deg) or self.angle_error_deg < 0:
@@ -188,7 +190,7 @@ def _check_truth(t_s, q_NT_true, omega_TN_T_true, n_trials):
 def draw_initial_estimates(q_NT0: ArrayLike, omega_TN_T0: ArrayLike, *, sigma_q: float,
                            sigma_omega_rad_s: float, rngs: list[np.random.Generator]
                            ) -> tuple[np.ndarray, np.ndarray]:
-    """003 eq (35): ``x̂₀ ~ N(x₀, diag(σ_q² I₄, σ_ω² I₃))``, quaternion renormalised (FLAG P003-13).
+    """003 eq (35): ``x̂₀ ~ N(x₀, diag(σ_q² I₄, σ_ω² I₃))``, quaternion renormalised (flag P003-13, docs/papers.md#p003-13).
 
     ``q_NT0 (4,)|(M, 4)``, ``omega_TN_T0 (3,)|(M, 3)``; one generator per trial; returns
     ``(q̂₀ (M, 4), ω̂₀ (M, 3))``.
@@ -331,7 +333,9 @@ class MonteCarloResult:
     n_resets : (M,) int array
         Covariance resets after consecutive rejections (see ``FilterState.n_resets``).
     failed : (M,) bool array
+        Trials whose filter failed (:attr:`ok` is the negation).
     failure_reason : (M,) str array
+        Empty for the trials that did not fail.
     criterion : ConvergenceCriterion
     measurements : MeasurementSeries
     """
@@ -360,7 +364,13 @@ class MonteCarloResult:
 
     @property
     def n_trials(self) -> int:
+        """Number ``M`` of trials."""
         return self.q_NT_est.shape[0]
+
+    @property
+    def ok(self) -> np.ndarray:
+        """``(M,)`` bool: trials whose filter did not fail (``failure_reason`` empty)."""
+        return ~self.failed
 
     @property
     def fraction_converged(self) -> float:

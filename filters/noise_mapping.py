@@ -13,7 +13,8 @@ of M filters does not call filterpy M times per step (a test checks it against
 :func:`filterpy.kalman.unscented_transform` sample by sample).
 
 For an isotropic ``Σ = σ² I`` the first-order result is ``σ²/4 Ξ(q) Ξ(q)ᵀ = σ²/4 (I − q qᵀ)``
-(SEEDS_SPEC §3.7), which the unscented transform reproduces up to O(σ⁴).
+(the linearisation of ``q ⊗ exp(e/2)`` about ``e = 0``), which the unscented transform
+reproduces up to O(σ⁴).
 """
 
 from __future__ import annotations
@@ -60,7 +61,8 @@ def sigma_point_weights(n: int = 3, *, alpha: float = UT_ALPHA, beta: float = UT
 def rotvec_covariance_from_angle_error(angle_error_rad: ArrayLike) -> np.ndarray:
     """Isotropic rotation-vector covariance of an attitude-angle error ``e`` (2-norm of 3 axes).
 
-    SEEDS_SPEC §3.7: σ_axis = e/√3, so ``Σ = e²/3 I``.  ``(...,) → (..., 3, 3)``.
+    The paper quotes ``e`` as one number; it is read as the 2-norm of an isotropic three-axis
+    error, so σ_axis = e/√3 and ``Σ = e²/3 I``.  ``(...,) → (..., 3, 3)``.
     """
     e = np.asarray(angle_error_rad, dtype=float)
     if np.any(~np.isfinite(e)) or np.any(e < 0):

@@ -16,8 +16,8 @@ FAILURE_NON_FINITE = "non-finite state or covariance"
 class ProcessNoise:
     """Continuous white-noise spectral densities of the filter's process model.
 
-    The truth is torque-free, so these are small tuning terms (SEEDS_SPEC §3.7 suggests a per-step
-    ``Q_proc = 1e-10 I`` in rad units at Δt = 0.1 s, which the defaults reproduce).
+    The truth is torque-free, so these are small tuning terms: the defaults give a per-step
+    ``Q_proc = 1e-10 I`` in rad units at Δt = 0.1 s (the paper gives no value).
 
     Attributes
     ----------
@@ -33,7 +33,7 @@ class ProcessNoise:
     rate_psd_rad2_s3: float = 1e-9
     inertia_ratio_psd_1_s: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("attitude_psd_rad2_s", "rate_psd_rad2_s3", "inertia_ratio_psd_1_s"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
@@ -74,7 +74,8 @@ class FilterState:
         Covariance used for such a reset (the initial covariance by default).
     failed : (M,) bool array
         Trial whose covariance stopped being positive definite (or turned non-finite); its
-        estimates are NaN from then on and it is not updated any more.
+        estimates are NaN from then on and it is not updated any more.  :attr:`ok` is its
+        negation.
     failure_reason : (M,) str array
         Empty for healthy trials.
     last_nis : (M,) array
@@ -99,11 +100,18 @@ class FilterState:
 
     @property
     def n_trials(self) -> int:
+        """Number ``M`` of filters in the batch."""
         return self.q_NT.shape[0]
+
+    @property
+    def ok(self) -> np.ndarray:
+        """``(M,)`` bool: trials that have not failed (``failure_reason`` is empty for them)."""
+        return ~self.failed
 
     @property
     def has_clone(self) -> bool:
         return self.q_NT_clone is not None
 
-    def replace(self, **changes) -> FilterState:
+    def replace(self, **changes: object) -> FilterState:
+        """A copy with the given fields changed (``dataclasses.replace``)."""
         return replace(self, **changes)

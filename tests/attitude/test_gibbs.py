@@ -70,7 +70,7 @@ def test_switching_from_any_set_ends_with_components_at_most_one(q):
 
 
 def test_transforms_reproduce_the_parameter_sets_for_all_twelve_combinations():
-    """SEEDS_SPEC A.3: g^(i') = T_j(g^(i)) with i' = j (i = 0), 0 (j = i), 6 − j − i otherwise."""
+    """001 eq (4)–(5): g^(i') = T_j(g^(i)) with i' = j (i = 0), 0 (j = i), 6 − j − i otherwise."""
     q = quat_from_axis_angle([0.3, -0.7, 0.5], 2.1)
     for i in range(4):
         for j in (1, 2, 3):
@@ -109,7 +109,7 @@ def test_composition_laws_hamilton_and_shuster_eq10(g1, g2):
 
 @given(unit_quats(), unit_quats())
 def test_shuster_product_reverses_hamilton_order(p, q):
-    """p ⊗_S q has the numbers of q ⊗_H p (SEEDS_SPEC §5, flag P001-3)."""
+    """p ⊗_S q has the numbers of q ⊗_H p (flag P001-3, docs/papers.md#p001-3)."""
     np.testing.assert_allclose(shuster_quat_multiply(shuster_from_quat(p), shuster_from_quat(q)),
                                shuster_from_quat(quat_multiply(q, p)), atol=1e-14)
 

@@ -1,4 +1,4 @@
-"""RK4 torque-free propagation and its Jacobians (003 eq 25–27, SEEDS_SPEC §3.3.7)."""
+"""RK4 torque-free propagation and its Jacobians (003 eq 25–27)."""
 
 import numpy as np
 import pytest

@@ -42,7 +42,7 @@ def test_rate_error_eq37_is_the_euclidean_norm():
 
 def test_convergence_time_is_the_first_epoch_after_which_both_errors_stay_in_the_band():
     t = np.arange(0, 60.01, 0.1)
-    crit = ConvergenceCriterion()  # SEEDS_SPEC §3.7: 0.5°, 0.05°/s, last 10 s
+    crit = ConvergenceCriterion()  # defaults: 0.5°, 0.05°/s, last 10 s
     ea = np.deg2rad(np.where(t < 12.0, 5.0, 0.1))[None].repeat(3, 0)
     er = np.deg2rad(np.where(t < 20.0, 1.0, 0.01))[None].repeat(3, 0)
     ea[1, 550] = np.deg2rad(0.6)  # excursion inside the last 10 s: not converged

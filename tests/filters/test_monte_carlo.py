@@ -60,9 +60,10 @@ def test_initial_estimates_follow_eq35(truth_40s):
 
 @pytest.mark.parametrize("Filter", [AttitudeEKF, MEKF])
 def test_experiments_b_c_reduced_both_noise_levels_converge_and_are_consistent(Filter, truth_40s):
-    """003 Exp. B/C settings, 100 runs × 40 s: converged (§3.7 band) and NEES in the 95 % band.
+    """003 Exp. B/C settings, 100 runs × 40 s: converged (ConvergenceCriterion band) and NEES in the 95 % band.
 
-    SEEDS_SPEC A.6 expects convergence at 0.6° too (the paper reports none).
+    A correct filter converges at 0.6° too, where the paper reports none (flag P003-15,
+    docs/papers.md#p003-15).
     """
     t, q, w = truth_40s
     F = Filter(J_kg_m2=J_KG_M2, process_noise=QUIET)
@@ -90,7 +91,7 @@ def test_stochastic_cloning_of_increments_is_consistent(Filter, truth_40s):
 
 
 def test_naively_chained_absolute_attitude_is_inconsistent(truth_40s):
-    """FLAG P003-14a: chaining increments into 'absolute' measurements breaks the filter."""
+    """Flag P003-14a (docs/papers.md#p003-14a): chaining increments into 'absolute' measurements breaks the filter."""
     t, q, w = truth_40s
     model = MeasurementModel(kind="chained_absolute", angle_error_deg=0.2)
     r = run_monte_carlo(MEKF(J_kg_m2=J_KG_M2, process_noise=QUIET), t_s=t, q_NT_true=q,
