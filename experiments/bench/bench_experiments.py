@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from experiments.bench import BenchRow, duration_row, throughput_row
-from experiments.formation_config import Config
+from experiments.scenarios.formation.config import Config
 from experiments.sweep import run_sweep
 
 FULL_GRID = {"formation.distance_m": [30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0],
@@ -36,8 +36,8 @@ def _config(**over) -> Config:
 
 
 def _sweep(grid: dict, trials: int, steps: int, workers: int) -> tuple[float, dict]:
-    from experiments.formation_pipeline import error_map_sweep_cell
     from experiments.config import load_config
+    from experiments.scenarios.formation.error_map import error_map_sweep_cell
 
     path = Path(__file__).resolve().parents[1] / "configs" / "003_fig5_fig6.toml"
     base = {"error_map.filter_runs": 0, "error_map.steps": steps}
@@ -52,26 +52,21 @@ def _sweep(grid: dict, trials: int, steps: int, workers: int) -> tuple[float, di
 
 def _frame_rates(quick: bool) -> tuple[float, float, int, int]:
     """Seconds per camera-frame in the rendered and in the geometric mode (3 views, 40 m, 10°)."""
-    from experiments.formation_pipeline import (
-        _views,
-        load_target,
-        make_camera,
-        observe_epoch,
-        random_attitudes,
-    )
+    from experiments.scenarios.formation.error_map import random_attitudes
+    from experiments.scenarios.formation.parts import make_observer, symmetric_T_CW
 
     epochs = 2 if quick else 6
     out = []
     for mode in ("rendered", "geometric"):
         cfg = _config(**{"observation.mode": mode, "formation.distance_m": 40.0})
-        cam, target, T = make_camera(cfg), load_target(cfg), _views(cfg)
+        observer, T, sun = make_observer(cfg), symmetric_T_CW(cfg), np.asarray(cfg.observation.sun_H)
         rng = np.random.default_rng(0)
         qs = random_attitudes(rng, epochs)
-        observe_epoch(cfg, cam, T, target, qs[0], rng=rng)  # warm-up (feature set, scene)
+        observer.observe(T, qs[0], sun, rng=rng)  # warm-up (feature set, scene)
         t0 = time.perf_counter()
         tracks = 0
         for q in qs:
-            tracks += observe_epoch(cfg, cam, T, target, q, rng=rng).n_tracks
+            tracks += observer.observe(T, q, sun, rng=rng).n_tracks
         out.append((time.perf_counter() - t0) / (epochs * len(T)))
         out.append(tracks // epochs)
     return out[0], out[2], out[1], out[3]

@@ -1,13 +1,15 @@
 """003 Experiments B–D (Figs 7–12): the EKF on synthetic attitude measurements, and its sweep cell.
 
-The truth is the paper's (003 eq 34, FLAG P003-13): ``q₀ = [1, 0, 0, 0]``, ``ω₀ = [5, 5, 5] °/s``,
-torque-free with ``J = diag(1000, 800, 600) kg·m²`` (SEEDS_SPEC §3.7), propagated exactly by
-:func:`attitude.rigid_body.propagate_torque_free`.  The filter starts from 003 eq (35) and sees a
-measurement of attitude-angle error ``e`` each epoch (:class:`filters.MeasurementModel`; σ_axis =
-e/√3, SEEDS_SPEC §3.7).  Cases: fixed errors (Experiments B and C: 0.2° and 0.6°) and per-run errors
-drawn from the realistic observation window (Experiment D: 0.025–0.35° for 3 views, 0.03–0.85°
-for 2 views).  "Converged" follows :class:`filters.ConvergenceCriterion` (the paper gives no
-threshold; SEEDS_SPEC §3.7 suggests 0.5° and 0.05°/s held for the last 10 s).
+The truth is the paper's (003 eq 34, flag P003-13, docs/papers.md#p003-13): ``q₀ = [1, 0, 0, 0]``,
+``ω₀ = [5, 5, 5] °/s``, torque-free with ``J = diag(1000, 800, 600) kg·m²`` (003 gives no inertia;
+a tri-axial choice so that the body tumbles, flag P003-14, docs/papers.md#p003-14), propagated
+exactly by :func:`attitude.rigid_body.propagate_torque_free`.  The filter starts from 003 eq (35)
+and sees a measurement of attitude-angle error ``e`` each epoch (:class:`filters.MeasurementModel`:
+``e`` is the norm of the 3-axis error, so σ_axis = e/√3).  Cases: fixed errors (Experiments B and C:
+0.2° and 0.6°) and per-run errors drawn from the realistic observation window (Experiment D:
+0.025–0.35° for 3 views, 0.03–0.85° for 2 views).  "Converged" follows
+:class:`filters.ConvergenceCriterion`; the paper gives no threshold (flag P003-15,
+docs/papers.md#p003-15), the configs use 0.5° and 0.05°/s held for the last 10 s.
 """
 
 from __future__ import annotations
@@ -18,31 +20,20 @@ import numpy as np
 import xarray as xr
 
 from attitude.rigid_body import propagate_torque_free
-from experiments.formation_config import Config
+from experiments.scenarios.formation.config import Config
+from experiments.scenarios.formation.parts import criterion, make_estimator
 from experiments.sweep import Metric, SweepCell, cell_seed_sequences
-from filters import MEKF, AttitudeEKF, ConvergenceCriterion, MeasurementModel, run_monte_carlo
+from filters import ConvergenceCriterion, MeasurementModel, MonteCarloResult, run_monte_carlo
 
-__all__ = ["truth_history", "make_filter", "criterion", "ekf_study", "ekf_cell", "ekf_sweep_cell",
+__all__ = ["truth_history", "monte_carlo", "ekf_study", "criterion_text", "ekf_cell", "ekf_sweep_cell",
            "role_generator"]
+
 
 def truth_history(cfg: Config) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(t_s (T,), q_NT (T, 4), omega_TN_T (T, 3) rad/s)`` of the configured torque-free target."""
     t = cfg.time.epochs()
     q, w = propagate_torque_free(np.asarray(cfg.target.q_NT0), cfg.omega0_rad_s(), cfg.inertia(), t)
     return t, q, w
-
-
-def make_filter(cfg: Config):
-    """The configured estimator (the paper's additive EKF or the MEKF) with the target's inertia."""
-    if cfg.estimator.filter == "mekf":
-        return MEKF(J_kg_m2=cfg.inertia())
-    return AttitudeEKF(J_kg_m2=cfg.inertia())
-
-
-def criterion(cfg: Config) -> ConvergenceCriterion:
-    e = cfg.estimator
-    return ConvergenceCriterion(attitude_deg=e.convergence_attitude_deg, rate_deg_s=e.convergence_rate_deg_s,
-                                hold_s=e.convergence_hold_s)
 
 
 def role_generator(seeds: Sequence[np.random.SeedSequence], role: int) -> np.random.Generator:
@@ -64,18 +55,24 @@ def _quat_error(q_est: np.ndarray, q_true: np.ndarray) -> np.ndarray:
     return q_est * s - q_true
 
 
-def _monte_carlo(cfg: Config, t, q, w, *, e_deg: float | None, window: Sequence[float] | None, runs: int,
-                 rng: np.random.Generator, orbit_rate: float = 0.0):
+def monte_carlo(cfg: Config, t: np.ndarray, q: np.ndarray, w: np.ndarray, *, e_deg: float | None,
+                window: Sequence[float] | None, runs: int, rng: np.random.Generator,
+                orbit_rate: float = 0.0) -> MonteCarloResult:
+    """``runs`` filters of the configured kind on synthetic measurements of the truth ``(t, q, w)``.
+
+    ``e_deg``: a fixed attitude-angle error of the measurements, or ``window = (lo, hi)``: a
+    per-run error drawn uniformly (degrees); ``rng`` spawns one stream per run.
+    """
     meas = MeasurementModel(kind=cfg.ekf.measurement, angle_error_deg=e_deg if e_deg is not None else 0.0,
                             angle_error_range_deg=None if window is None else tuple(window),
                             orbit_rate_rad_s=orbit_rate)
-    return run_monte_carlo(make_filter(cfg), t_s=t, q_NT_true=q, omega_TN_T_true=w, measurement=meas,
+    return run_monte_carlo(make_estimator(cfg), t_s=t, q_NT_true=q, omega_TN_T_true=w, measurement=meas,
                            n_trials=runs, sigma_q=cfg.estimator.sigma_q,
                            sigma_omega_rad_s=float(np.deg2rad(cfg.estimator.sigma_omega_deg_s)),
                            criterion=criterion(cfg), rng=rng)
 
 
-def ekf_study(cfg: Config, *, progress: Callable[[int, int], None]) -> tuple[xr.Dataset, dict]:
+def ekf_study(cfg: Config, *, progress: Callable[[int, int], None] | None = None) -> tuple[xr.Dataset, dict]:
     """Experiments B–D: every case of ``cfg.ekf`` × ``cfg.ekf.runs`` Monte Carlo runs.
 
     Returns the dataset (coordinates ``case``, ``run``, ``time_s``, ``quat_component``,
@@ -102,10 +99,11 @@ def ekf_study(cfg: Config, *, progress: Callable[[int, int], None]) -> tuple[xr.
     e_used = np.empty((len(cases), M))
     failed = np.empty((len(cases), M), dtype=object)
     summary: dict = {"cases": {}}
-    progress(0, len(cases))
+    if progress:
+        progress(0, len(cases))
     for i, (name, e_deg, win) in enumerate(cases):
         rng = np.random.default_rng(cell_seed_sequences(cfg.seed, {"ekf.case": name}, 1)[0])
-        mc = _monte_carlo(cfg, t, q, w, e_deg=e_deg, window=win, runs=M, rng=rng)
+        mc = monte_carlo(cfg, t, q, w, e_deg=e_deg, window=win, runs=M, rng=rng)
         att[i] = np.rad2deg(mc.attitude_error_rad)
         eul[i] = np.rad2deg(mc.euler_error_rad)
         rate[i] = np.rad2deg(mc.rate_error_rad_s)
@@ -119,7 +117,8 @@ def ekf_study(cfg: Config, *, progress: Callable[[int, int], None]) -> tuple[xr.
         summary["cases"][name] = {k: s[k] for k in ("fraction_converged", "median_convergence_time_s",
                                                     "final_rms_attitude_error_deg",
                                                     "final_rms_rate_error_deg_s", "n_failed")}
-        progress(i + 1, len(cases))
+        if progress:
+            progress(i + 1, len(cases))
     crit = criterion(cfg)
     ds = xr.Dataset(
         {
@@ -155,6 +154,7 @@ def ekf_study(cfg: Config, *, progress: Callable[[int, int], None]) -> tuple[xr.
 
 
 def criterion_text(c: ConvergenceCriterion) -> str:
+    """The criterion in words (the ``long_name`` of the ``converged`` variables)."""
     return (f"converged: attitude error < {c.attitude_deg:g} deg and rate error < {c.rate_deg_s:g} deg/s "
             f"for the last {c.hold_s:g} s")
 
@@ -165,7 +165,7 @@ def criterion_text(c: ConvergenceCriterion) -> str:
 def ekf_cell(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> dict[str, np.ndarray]:
     """Sweep cell: one Monte Carlo of ``len(seeds)`` runs at ``cfg.ekf.angle_error_deg``."""
     t, q, w = truth_history(cfg)
-    mc = _monte_carlo(cfg, t, q, w, e_deg=cfg.ekf.angle_error_deg, window=None, runs=len(seeds),
+    mc = monte_carlo(cfg, t, q, w, e_deg=cfg.ekf.angle_error_deg, window=None, runs=len(seeds),
                       rng=role_generator(seeds, 1))
     tail = t >= t[-1] - cfg.estimator.convergence_hold_s
     return {
@@ -178,6 +178,7 @@ def ekf_cell(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> dict[str, 
 
 
 def ekf_sweep_cell(cfg: Config) -> SweepCell:
+    """The sweep cell of the EKF study (:func:`ekf_cell`) with its metrics."""
     return SweepCell(
         fn=ekf_cell,
         metrics={

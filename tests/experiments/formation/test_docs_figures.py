@@ -9,7 +9,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from matplotlib.collections import QuadMesh  # noqa: E402
 
-from experiments.plots_formation import (  # noqa: E402
+from experiments.scenarios.formation.docs_figures import (  # noqa: E402
     CATEGORIES,
     FormationFigureData,
     SelectionCase,

@@ -3,7 +3,7 @@
 A config file names ``kind = "formation"`` and the study to run with ``coobs run``:
 
 ``study = "closed_loop"``
-    one scenario end to end (ARCHITECTURE §3): truth, observers, observation (rendered or
+    one scenario end to end (:mod:`closed_loop`): truth, observers, observation (rendered or
     geometric), triangulation, inter-frame association and registration, EKF;
 ``study = "error_map"``
     one cell of 003 Experiment A (Figs 5–6) at ``formation.distance_m`` / ``axis_angle_deg``;
@@ -20,8 +20,9 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
+from experiments.config import ConfigTable, ScenarioConfig
 from experiments.sweep import SweepSpec
 from vision.target import BUNDLED_MESHES, bundled_mesh_path
 
@@ -40,11 +41,7 @@ __all__ = [
 ]
 
 #: repository root (mesh paths in configs may be relative to it)
-REPO_ROOT = Path(__file__).resolve().parents[1]
-
-
-class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+REPO_ROOT = Path(__file__).resolve().parents[3]
 
 
 def _vec(n: int, *, positive: bool = False):
@@ -60,16 +57,16 @@ def _vec(n: int, *, positive: bool = False):
     return check
 
 
-class TargetConfig(_Model):
+class TargetConfig(ConfigTable):
     """The tumbling target: model, inertia, initial attitude and rate."""
 
     model: str = Field("fy1", description='"fy1" (procedural FY-1-like), a bundled mesh ("topex", '
                        '"hubble") or a mesh file (OBJ, STL, PLY, ...)')
     mesh_unit_m: float = Field(1.0, gt=0, description="metres per mesh-file unit (bundled mesh: its own unit)")
     texture_seed: int = Field(0, ge=0, description="seed of the procedural textures and surface features")
-    inertia_kg_m2: list[float] = Field([1000.0, 800.0, 600.0], description="principal moments (SEEDS_SPEC §3.7)")
+    inertia_kg_m2: list[float] = Field([1000.0, 800.0, 600.0], description="principal moments (003 gives none: flag P003-14, docs/papers.md#p003-14)")
     q_NT0: list[float] = Field([1.0, 0.0, 0.0, 0.0], description="initial attitude (003 eq 34), [w, x, y, z]")
-    omega_TN_T0_deg_s: list[float] = Field([5.0, 5.0, 5.0], description="initial body rate (003 eq 34, FLAG P003-13)")
+    omega_TN_T0_deg_s: list[float] = Field([5.0, 5.0, 5.0], description="initial body rate (003 eq 34, flag P003-13, docs/papers.md#p003-13)")
 
     _c_inertia = field_validator("inertia_kg_m2")(_vec(3, positive=True))
     _c_rate = field_validator("omega_TN_T0_deg_s")(_vec(3))
@@ -117,7 +114,7 @@ class TargetConfig(_Model):
         return p if p.is_file() else REPO_ROOT / p
 
 
-class SpacecraftConfig(_Model):
+class SpacecraftConfig(ConfigTable):
     """A candidate observer on a Clohessy–Wiltshire orbit about the target (H frame at t = 0)."""
 
     name: str = Field(min_length=1)
@@ -128,7 +125,7 @@ class SpacecraftConfig(_Model):
     _c_v = field_validator("v_H_m_s")(_vec(3))
 
 
-class FormationConfig(_Model):
+class FormationConfig(ConfigTable):
     """Observers: a symmetric n-view cone (003 §3.1) or candidate spacecraft on CW orbits."""
 
     geometry: Literal["symmetric", "cw"] = "symmetric"
@@ -139,7 +136,7 @@ class FormationConfig(_Model):
     orbit_altitude_km: float = Field(870.0, gt=150.0, lt=40000.0, description="target's circular orbit")
     max_active: int = Field(3, ge=2, le=12, description="observers used at once (selection)")
     min_active: int = Field(2, ge=2, le=12, description="fallback set size when no max_active set qualifies")
-    d_min_lambda: float = Field(1.1, gt=0, le=10.0, description="λ of 003 eq (1) (FLAG P003-1 suggests 1.1)")
+    d_min_lambda: float = Field(1.1, gt=0, le=10.0, description="λ of 003 eq (1) (flag P003-1, docs/papers.md#p003-1, suggests 1.1)")
     d_max_m: float = Field(150.0, gt=0, description="maximum useful range (003 §1.2)")
     max_pointing_deg: float = Field(5.0, gt=0, le=90.0, description="boresight-to-target angle limit")
     axis_angle_min_deg: float = Field(5.0, ge=0, le=180.0, description="pairwise optical-axis angle window")
@@ -172,15 +169,16 @@ class FormationConfig(_Model):
         return self
 
 
-class CameraConfig(_Model):
-    """Identical pinhole cameras, one per observer (SEEDS_SPEC §3.7 uses a 20° field of view)."""
+class CameraConfig(ConfigTable):
+    """Identical pinhole cameras, one per observer (003 gives no intrinsics; a 20° field of view keeps
+    003 eq (1) at 30 m for a 5 m target)."""
 
     width_px: int = Field(1024, ge=64, le=8192)
     height_px: int = Field(1024, ge=64, le=8192)
     fov_deg: float = Field(20.0, gt=0.5, lt=120.0)
 
 
-class ObservationConfig(_Model):
+class ObservationConfig(ConfigTable):
     """How the cameras see the target."""
 
     mode: Literal["rendered", "geometric"] = "geometric"
@@ -194,7 +192,7 @@ class ObservationConfig(_Model):
     _c_sun = field_validator("sun_H")(_vec(3))
 
 
-class EstimatorConfig(_Model):
+class EstimatorConfig(ConfigTable):
     """Registration and filter settings."""
 
     registration: Literal["kabsch", "ransac", "ml"] = Field(
@@ -203,15 +201,15 @@ class EstimatorConfig(_Model):
     sigma_q: float = Field(0.1, gt=0, le=1.0, description="003 eq (35) initial quaternion σ per component")
     sigma_omega_deg_s: float = Field(0.1, gt=0, le=90.0, description="003 eq (35) initial rate σ")
     initial_attitude_known: bool = Field(
-        True, description="closed loop: the body frame is defined by the first frame (FLAG P003-14a), so the "
+        True, description="closed loop: the body frame is defined by the first frame (flag P003-14a, docs/papers.md#p003-14a), so the "
                           "filter starts at q_NT0 with sigma_q_known; else from 003 eq (35)")
     sigma_q_known: float = Field(1e-4, gt=0, le=1.0, description="initial quaternion sigma when known")
-    convergence_attitude_deg: float = Field(0.5, gt=0, description="SEEDS_SPEC §3.7 threshold")
+    convergence_attitude_deg: float = Field(0.5, gt=0, description="convergence threshold (003 gives none: flag P003-15, docs/papers.md#p003-15)")
     convergence_rate_deg_s: float = Field(0.05, gt=0)
     convergence_hold_s: float = Field(10.0, ge=0)
 
 
-class TimeConfig(_Model):
+class TimeConfig(ConfigTable):
     """Epochs ``t = 0, dt, …, duration``."""
 
     dt_s: float = Field(0.1, gt=0, le=600.0)
@@ -231,7 +229,7 @@ class TimeConfig(_Model):
         return self.dt_s * np.arange(n + 1)
 
 
-class ErrorMapConfig(_Model):
+class ErrorMapConfig(ConfigTable):
     """003 Experiment A: random initial attitudes, each followed by equal attitude steps."""
 
     steps: int = Field(10, ge=1, le=1000, description="attitude steps after each initial attitude")
@@ -244,7 +242,7 @@ class ErrorMapConfig(_Model):
     _c_step = field_validator("step_deg")(_vec(3))
 
 
-class EkfStudyConfig(_Model):
+class EkfStudyConfig(ConfigTable):
     """003 Experiments B–D: the EKF on synthetic attitude measurements."""
 
     runs: int = Field(100, ge=1, le=100000, description="Monte Carlo runs per case (003: 100)")
@@ -272,7 +270,7 @@ class EkfStudyConfig(_Model):
         return v
 
 
-class Config(_Model):
+class Config(ScenarioConfig):
     """A ``kind = "formation"`` config (003: multi-view cooperative observation)."""
 
     kind: Literal["formation"]

@@ -1,4 +1,4 @@
-"""Formation figures: the formation in H (3D) and the observer-selection timeline.
+"""Docs figures of the formation: the formation in H (3D) and the observer-selection timeline.
 
 Plot functions take ``ax=None`` (a new figure when omitted), return the axes, and compute nothing.
 :func:`formation_figure_data` runs the study behind the figures on the six-spacecraft scenario of
@@ -9,7 +9,7 @@ the minimum-fuel reconfiguration of three spacecraft into the trailing 3-view ge
 drift-free slot states, and after it with circulating slot states
 (:func:`formation.execution.circulating_slot_states`).  The docs figures are made with::
 
-    .venv/bin/python -m experiments.plots_formation docs/figures
+    .venv/bin/python -m experiments.scenarios.formation.docs_figures docs/figures
 
 which writes ``formation_3d.png`` and ``formation_selection_timeline.png`` there and prints the
 plans' figures, the timelines' summaries and the score comparison (:func:`score_comparison_data`).
@@ -18,6 +18,7 @@ plans' figures, the timelines' summaries and the score comparison (:func:`score_
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,8 +28,11 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.colors import BoundaryNorm, ListedColormap  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
+from numpy.typing import ArrayLike  # noqa: E402
 
 __all__ = [
     "CATEGORIES",
@@ -94,7 +98,7 @@ def _category(why: str) -> int:
     raise ValueError(f"excluded: unknown exclusion reason {why!r}")
 
 
-def frustum_corners_H(T_CW: np.ndarray, fov_x_rad: float, fov_y_rad: float, depth_m) -> np.ndarray:
+def frustum_corners_H(T_CW: np.ndarray, fov_x_rad: float, fov_y_rad: float, depth_m: ArrayLike) -> np.ndarray:
     """Corners ``(k, 4, 3)`` in H of the camera frusta cut at ``depth_m`` (scalar or ``(k,)``) along the boresight."""
     R_CW = T_CW[:, :3, :3]
     c = -np.einsum("kji,kj->ki", R_CW, T_CW[:, :3, 3])  # camera centres in H
@@ -209,8 +213,8 @@ def formation_figure_data(*, step_s: float = 20.0, tf_orbits: float = 0.6, n_poi
         x_after[movers] = states_along_plan(s.x0_H[movers], p, t, n=n)
         tl, case = select(x_after, f"after reconfiguration, {name}")
         cases.append(case)
-        summary[name] = {"movers": movers.tolist(), "slot_of": slot_of.tolist(), "success": p.success,
-                         "status": p.status, "dv_total_m_s": p.dv_total_m_s, "lower_bound_m_s": lb,
+        summary[name] = {"movers": movers.tolist(), "slot_of": slot_of.tolist(), "success": p.ok,
+                         "status": p.solver_status, "dv_total_m_s": p.dv_total_m_s, "lower_bound_m_s": lb,
                          "solve_time_s": p.solve_time_s, "rounds": p.rounds,
                          "valid_fraction_after_arrival": float(np.mean(~tl.short[t >= tf])),
                          "min_keep_out_margin_m": float(p.margins["keep_out"].min()),
@@ -233,7 +237,8 @@ def formation_figure_data(*, step_s: float = 20.0, tf_orbits: float = 0.6, n_poi
         cases=tuple(cases), plan_summary=summary)
 
 
-def score_comparison_data(*, ranges_m=(35.0, 60.0, 140.0), angles_deg=(2.0, 10.0, 30.0), n_points: int = 60,
+def score_comparison_data(*, ranges_m: Sequence[float] = (35.0, 60.0, 140.0),
+                          angles_deg: Sequence[float] = (2.0, 10.0, 30.0), n_points: int = 60,
                           pixel_sigma_px: float = 0.5) -> list[dict]:
     """Cramér–Rao score against point DOP for trailing 3-view cones (no occlusion, 1024 px, 20° FoV).
 
@@ -270,10 +275,13 @@ def _sphere_mesh(radius_m: float, n: int = 24):
     return radius_m * np.cos(u) * np.sin(v), radius_m * np.sin(u) * np.sin(v), radius_m * np.cos(v)
 
 
-def plot_formation_3d(r_coast_H, *, transfer_H=None, hold_H=None, impulse_r_H=None, impulse_dv_H=None,
-                      slots_H=None, camera_r_H=None, frusta_H=None, keep_out_radius_m: float = 0.0,
-                      target_radius_m: float = 0.0, ids=None, dv_scale_m_per_m_s: float = 300.0,
-                      limits_m=None, ax=None, legend: bool = True):
+def plot_formation_3d(r_coast_H: ArrayLike, *, transfer_H: ArrayLike | None = None,
+                      hold_H: ArrayLike | None = None, impulse_r_H: ArrayLike | None = None,
+                      impulse_dv_H: ArrayLike | None = None, slots_H: ArrayLike | None = None,
+                      camera_r_H: ArrayLike | None = None, frusta_H: ArrayLike | None = None,
+                      keep_out_radius_m: float = 0.0, target_radius_m: float = 0.0,
+                      ids: Sequence[int] | None = None, dv_scale_m_per_m_s: float = 300.0,
+                      limits_m: ArrayLike | None = None, ax: Axes | None = None, legend: bool = True) -> Axes:
     """Formation in H: coasting orbits, planned transfers with impulses, slots, cameras and frusta.
 
     Parameters
@@ -356,8 +364,9 @@ def plot_formation_3d(r_coast_H, *, transfer_H=None, hold_H=None, impulse_r_H=No
     return ax
 
 
-def plot_selection_timeline(t_s, category, *, names=None, ax=None, period_s: float | None = None,
-                            marks_s=(), title: str | None = None):
+def plot_selection_timeline(t_s: ArrayLike, category: ArrayLike, *, names: Sequence[str] | None = None,
+                            ax: Axes | None = None, period_s: float | None = None, marks_s: Sequence[float] = (),
+                            title: str | None = None) -> Axes:
     """Candidates (rows) against time: active, or coloured by why each one was left out.
 
     ``category (T, N)`` holds :data:`CATEGORIES` codes; ``marks_s`` are times drawn as vertical
@@ -385,8 +394,9 @@ def plot_selection_timeline(t_s, category, *, names=None, ax=None, period_s: flo
     return ax
 
 
-def plot_feasible_count(t_s, n_feasible, *, score_rad=None, n_subsets: int | None = None, ax=None,
-                        period_s: float | None = None, marks_s=()):
+def plot_feasible_count(t_s: ArrayLike, n_feasible: ArrayLike, *, score_rad: ArrayLike | None = None,
+                        n_subsets: int | None = None, ax: Axes | None = None, period_s: float | None = None,
+                        marks_s: Sequence[float] = ()) -> Axes | tuple[Axes, Axes]:
     """Feasible k-subsets per epoch (steps) and, on a second axis, the active set's predicted error (mdeg)."""
     if ax is None:
         _, ax = plt.subplots(figsize=(10.0, 1.4), layout="constrained")
@@ -418,7 +428,7 @@ def plot_feasible_count(t_s, n_feasible, *, score_rad=None, n_subsets: int | Non
     return out
 
 
-def formation_3d_figure(data: FormationFigureData):
+def formation_3d_figure(data: FormationFigureData) -> Figure:
     """Two 3D panels: the whole formation over one orbit, and :data:`ZOOM_BOX_M` about the target
     (equal scales; spacecraft that do not manoeuvre, the transfers' last part, slots, observers)."""
     fig = plt.figure(figsize=(14.0, 7.0), layout="constrained")
@@ -448,7 +458,7 @@ def formation_3d_figure(data: FormationFigureData):
     return fig
 
 
-def selection_timeline_figure(data: FormationFigureData, *, k: int = 3):
+def selection_timeline_figure(data: FormationFigureData, *, k: int = 3) -> Figure:
     """For each selection case: the candidates' timeline and the feasible-set count with the score."""
     from math import comb
 
@@ -475,6 +485,7 @@ def selection_timeline_figure(data: FormationFigureData, *, k: int = 3):
 
 
 def main(argv: list[str] | None = None) -> None:  # pragma: no cover - documented script
+    """Draw the docs figures into ``argv[0]`` (default ``docs/figures``) and print their numbers."""
     args = sys.argv[1:] if argv is None else argv
     out = Path(args[0] if args else "docs/figures")
     out.mkdir(parents=True, exist_ok=True)

@@ -11,10 +11,10 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from experiments.cli import app
-from experiments.scenarios import load_config
+from experiments.config import load_config
 from experiments.sweep import cell_seed_sequences, open_sweep
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 CONFIGS = REPO / "experiments" / "configs"
 runner = CliRunner()
 
@@ -29,7 +29,7 @@ def _write(tmp_path: Path, text: str, name: str = "cfg.toml") -> Path:
                                   "003_ekf.toml", "003_convergence_closed_loop.toml", "formation_orbit.toml"])
 def test_shipped_configs_validate(name):
     module, cfg = load_config(CONFIGS / name)
-    assert cfg.kind == "formation" and module.__name__ == "experiments.scenario_formation"
+    assert cfg.kind == "formation" and module.__name__ == "experiments.scenarios.formation"
 
 
 BAD = {
@@ -65,10 +65,10 @@ def test_sweep_without_sweep_table_exits_2(tmp_path):
     assert res.exit_code == 2 and "sweep" in res.output
 
 
-def test_ekf_study_converges_to_the_seeds_spec_check_numbers():
-    """SEEDS_SPEC FLAG P003-15: with the paper's setup the EKF converges for both 0.2° and 0.6°, final
+def test_ekf_study_converges_to_the_paper_check_numbers():
+    """Flag P003-15 (docs/papers.md#p003-15): with the paper's setup the EKF converges for both 0.2° and 0.6°, final
     RMS attitude error ≈ 0.03° and ≈ 0.06°, rate error ≈ 0.004–0.007 °/s (30 runs each)."""
-    from experiments.formation_ekf import ekf_study
+    from experiments.scenarios.formation.ekf import ekf_study
 
     _, cfg = load_config(CONFIGS / "003_ekf.toml",
                          overrides={"ekf.runs": 30, "ekf.windows_deg": {}, "time.duration_s": 40.0})
@@ -92,7 +92,7 @@ def _error_map_cfg(**formation):
 
 def test_ml_registration_attains_the_cramer_rao_bound_in_the_geometric_mode():
     """Covariance-aware registration is efficient: its per-step RMS error is at the CRLB."""
-    from experiments.formation_pipeline import error_map_trials
+    from experiments.scenarios.formation.error_map import error_map_trials
 
     cfg = _error_map_cfg(n_views=3, distance_m=40.0, axis_angle_deg=10.0)
     cfg = cfg.model_copy(update={"estimator": cfg.estimator.model_copy(update={"registration": "ml"})})
@@ -105,7 +105,7 @@ def test_ml_registration_attains_the_cramer_rao_bound_in_the_geometric_mode():
 
 def test_two_views_bound_the_increment_worse_than_three_at_long_range():
     """Geometry alone: with the same cameras' range and axis angle, 2 views have a larger CRLB."""
-    from experiments.formation_pipeline import error_map_trials
+    from experiments.scenarios.formation.error_map import error_map_trials
 
     seeds = cell_seed_sequences(3, {"test": "views"}, 3)
     c2 = error_map_trials(_error_map_cfg(n_views=2, distance_m=80.0, axis_angle_deg=10.0), seeds)
@@ -185,7 +185,7 @@ duration_s = 6.0
 def test_observers_out_of_range_are_reconfigured_into_the_cone_and_then_selected():
     """Three CW candidates 200 m behind the target (beyond d_max = 150 m): nobody qualifies, so a
     minimum-fuel reconfiguration moves them to the 3-view cone at 50 m; after arrival they are active."""
-    from experiments.formation_closed_loop import plan_observers
+    from experiments.scenarios.formation.closed_loop import observer_plan
 
     far = [{"name": f"s{i}", "r_H_m": [0.0, -200.0 - 10 * i, 5.0 * i], "v_H_m_s": [0.0, 0.0, 0.0]}
            for i in range(3)]
@@ -194,7 +194,7 @@ def test_observers_out_of_range_are_reconfigured_into_the_cone_and_then_selected
         "formation.distance_m": 50.0, "formation.axis_angle_deg": 10.0})
     t = np.arange(0.0, 1200.0, 30.0)
     sun_H = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (t.size, 3))  # Sun along the orbit normal
-    p = plan_observers(cfg, t, 5.3, sun_H, np.ones(t.size))
+    p = observer_plan(cfg, t, 5.3, sun_H, np.ones(t.size))
     assert p.reconfiguration["success"] and p.reconfiguration["start_s"] == 0.0
     assert 0 < p.reconfiguration["dv_total_m_s"] < 3 * cfg.formation.dv_max_m_s * 6
     arrived = t >= 600.0
@@ -212,7 +212,7 @@ def test_residual_rotation_covariance_of_kabsch_matches_monte_carlo():
         quat_from_rotvec,
         rotvec_from_quat,
     )
-    from experiments.formation_pipeline import _residual_rotation_covariance
+    from closed_loop import residual_rotation_covariance
     from reconstruction.registration import fit_rigid
 
     rng = np.random.default_rng(0)
@@ -223,5 +223,5 @@ def test_residual_rotation_covariance_of_kabsch_matches_monte_carlo():
         Q = P @ R.T + [1.0, 2.0, 3.0] + 0.02 * rng.normal(size=P.shape)
         reg = fit_rigid(P, Q)
         errs.append(rotvec_from_quat(quat_from_matrix(R @ reg.R.T)))
-        covs.append(_residual_rotation_covariance(P, Q, reg))
+        covs.append(residual_rotation_covariance(P, Q, reg))
     np.testing.assert_allclose(np.diag(np.mean(covs, 0)), np.diag(np.cov(np.array(errs).T)), rtol=0.2)

@@ -1,12 +1,12 @@
-"""Figures drawn from stored results (matplotlib, Agg).
+"""Figures of the formation scenario (003), drawn from stored results with the primitives of
+:mod:`experiments.plotting`: error and convergence maps, EKF runs, one Experiment A cell, the closed loop.
 
-Plot functions take ``ax=None`` (a new figure when omitted), return the axes, and compute nothing:
-the figure drivers (``*_figures``) select and reduce the stored dataset, then call them.
+Each ``*_figures`` function selects and reduces the stored dataset, draws, and returns the paths of
+the PNG files it wrote into ``fig_dir``.
 """
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -18,238 +18,29 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
+from experiments.plotting import (  # noqa: E402
+    plot_cloud,
+    plot_histogram,
+    plot_image_tracks,
+    plot_map,
+    plot_time_series,
+    plot_timeline,
+    save,
+    sweep_overview_figures,
+)
+
 __all__ = [
-    "plot_map",
-    "plot_band",
-    "sweep_overview_figures",
-    "save",
+    "error_map_figures",
+    "convergence_map_figures",
+    "sweep_figures",
+    "ekf_figures",
+    "error_map_run_figures",
+    "closed_loop_figures",
 ]
 
 
-def _axes(ax):
-    if ax is None:
-        _, ax = plt.subplots(figsize=(5.0, 4.0), layout="constrained")
-    return ax
-
-
-def _edges(c: np.ndarray) -> np.ndarray:
-    c = np.asarray(c, dtype=float)
-    if c.size == 1:
-        return np.array([c[0] - 0.5, c[0] + 0.5])
-    mid = 0.5 * (c[1:] + c[:-1])
-    return np.concatenate([[c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]])
-
-
-def plot_map(values: np.ndarray, x: np.ndarray, y: np.ndarray, *, ax=None, vmin: float | None = None,
-             vmax: float | None = None, cmap: str = "viridis", xlabel: str = "", ylabel: str = "",
-             title: str = "", cbar_label: str = "", annotate: bool = False, fmt: str = "{:.2f}"):
-    """Colour map of ``values[len(y), len(x)]`` on cell-centred coordinates; NaN cells stay blank.
-
-    Parameters
-    ----------
-    values : ndarray, shape (ny, nx)
-        The map (already reduced over trials by the caller).
-    x, y : ndarray
-        Cell-centre coordinates along the horizontal and vertical axes.
-    annotate : bool
-        Write each cell's value in the cell.
-    """
-    ax = _axes(ax)
-    v = np.ma.masked_invalid(np.asarray(values, dtype=float))
-    mesh = ax.pcolormesh(_edges(x), _edges(y), v, cmap=cmap, vmin=vmin, vmax=vmax, shading="flat")
-    cb = ax.figure.colorbar(mesh, ax=ax)
-    cb.set_label(cbar_label)
-    if annotate and v.size <= 400:
-        for j, yy in enumerate(y):
-            for i, xx in enumerate(x):
-                if not np.ma.is_masked(v[j, i]):
-                    ax.text(xx, yy, fmt.format(float(v[j, i])), ha="center", va="center", fontsize=6,
-                            color="w" if vmax is not None and v[j, i] < 0.5 * (vmax + (vmin or 0)) else "k")
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    ax.set_title(title)
-    return ax
-
-
-def plot_band(x: np.ndarray, center: np.ndarray, lo: np.ndarray | None = None, hi: np.ndarray | None = None,
-              *, ax=None, label: str = "", xlabel: str = "", ylabel: str = "", title: str = "",
-              color: str | None = None):
-    """A line with an optional shaded band ``[lo, hi]`` (e.g. median and interquartile range)."""
-    ax = _axes(ax)
-    (line,) = ax.plot(x, center, label=label, color=color)
-    if lo is not None and hi is not None:
-        ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.25, linewidth=0)
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title)
-    if label:
-        ax.legend()
-    return ax
-
-
-def save(fig, path: Path) -> Path:
-    """Save a figure as PNG (150 dpi) and close it."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
-    return path
-
-
-def _label(ds: xr.Dataset, name: str) -> str:
-    var = ds[name]
-    units = var.attrs.get("units", "")
-    return f"{name} [{units}]" if units else name
-
-
-def sweep_overview_figures(ds: xr.Dataset, fig_dir: Path, *, swept: Sequence[str] | None = None) -> list[Path]:
-    """Generic sweep figures: for each metric, its trial mean over the swept parameters.
-
-    One swept parameter: mean with the 10–90 % band over trials.  Two or more: a colour map over
-    the first two, one panel per value of the third (further ones at their first value).
-    """
-    swept = list(swept) if swept is not None else list(ds["done"].dims)
-    keys = json.loads(ds.attrs.get("swept_keys", "[]"))
-    paths: list[Path] = []
-    for name, var in ds.data_vars.items():
-        if name in ("failure_reason", "done"):
-            continue
-        extra = [d for d in var.dims if d not in swept and d != "trial"]
-        if extra:
-            var = var.isel({d: -1 for d in extra})
-        has_trial = "trial" in var.dims
-        mean = var.mean("trial", skipna=True) if has_trial else var
-        if len(swept) == 1:
-            fig, ax = plt.subplots(figsize=(5.5, 4.0), layout="constrained")
-            x = ds[swept[0]].values
-            lo = var.quantile(0.1, "trial", skipna=True).values if has_trial else None
-            hi = var.quantile(0.9, "trial", skipna=True).values if has_trial else None
-            plot_band(x, mean.values, lo, hi, ax=ax, xlabel=keys[0] if keys else swept[0],
-                      ylabel=_label(ds, name), title=f"{name}: trial mean, 10-90 % band")
-        else:
-            third = swept[2] if len(swept) > 2 else None
-            mean = mean.isel({d: 0 for d in swept[3:]})
-            panels = list(ds[third].values) if third else [None]
-            fig, axes = plt.subplots(1, len(panels), figsize=(5.0 * len(panels), 4.0), layout="constrained",
-                                     squeeze=False)
-            finite = mean.values[np.isfinite(mean.values)]
-            vmin, vmax = (float(finite.min()), float(finite.max())) if finite.size else (None, None)
-            for ax, p in zip(axes[0], panels, strict=True):
-                m = mean.sel({third: p}) if third else mean
-                m = m.transpose(swept[1], swept[0])
-                plot_map(m.values, ds[swept[0]].values, ds[swept[1]].values, ax=ax, vmin=vmin, vmax=vmax,
-                         xlabel=swept[0], ylabel=swept[1], cbar_label=_label(ds, name),
-                         title=f"{name} (trial mean)" + (f", {third} = {p}" if third else ""))
-        paths.append(save(fig, fig_dir / f"sweep_{name}.png"))
-    return paths
-
-
-# ============================================================================= 003 (formation) figures
-
 #: colour range of 003 Figs 5–6, degrees
 ERROR_MAP_RANGE_DEG = (0.0, 1.6)
-
-
-def plot_time_series(t: np.ndarray, series: np.ndarray, *, ax=None, labels: Sequence[str] | None = None,
-                     threshold: float | None = None, symmetric_threshold: bool = False, logy: bool = False,
-                     xlabel: str = "time [s]", ylabel: str = "", title: str = "", alpha: float = 1.0,
-                     linewidth: float = 1.0):
-    """Lines ``series[..., T]`` (one per row) against ``t``; optional threshold line(s)."""
-    ax = _axes(ax)
-    s = np.atleast_2d(np.asarray(series, dtype=float))
-    for i, row in enumerate(s):
-        ax.plot(t, row, label=None if labels is None else labels[i], alpha=alpha, linewidth=linewidth)
-    if threshold is not None:
-        ax.axhline(threshold, color="k", linestyle="--", linewidth=0.8)
-        if symmetric_threshold:
-            ax.axhline(-threshold, color="k", linestyle="--", linewidth=0.8)
-    if logy:
-        ax.set_yscale("log")
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title)
-    if labels is not None:
-        ax.legend(fontsize=7, ncol=min(4, len(labels)))
-    return ax
-
-
-def plot_timeline(t: np.ndarray, active: np.ndarray, names: Sequence[str], *, ax=None, title: str = "",
-                  shade: np.ndarray | None = None, shade_label: str = ""):
-    """Active-observer timeline: one row per observer, filled where ``active[T, S]``; epochs where
-    ``shade[T]`` is true (e.g. Earth's shadow) are shaded grey."""
-    ax = _axes(ax)
-    a = np.asarray(active, dtype=bool)
-    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-    if shade is not None:
-        sh = np.asarray(shade, dtype=bool)
-        starts = np.flatnonzero(sh & ~np.r_[False, sh[:-1]])
-        ends = np.flatnonzero(sh & ~np.r_[sh[1:], False])
-        for n_span, (i, j) in enumerate(zip(starts, ends, strict=True)):
-            ax.axvspan(t[i], t[j] + dt, color="0.85", zorder=0, label=shade_label if n_span == 0 else None)
-        if shade_label and starts.size:
-            ax.legend(loc="upper right", fontsize=7)
-    for s in range(a.shape[1]):
-        on = a[:, s]
-        starts = np.flatnonzero(on & ~np.r_[False, on[:-1]])
-        ends = np.flatnonzero(on & ~np.r_[on[1:], False])
-        ax.broken_barh([(t[i], t[j] - t[i] + dt) for i, j in zip(starts, ends, strict=True)], (s - 0.4, 0.8))
-    ax.set_yticks(range(a.shape[1]))
-    ax.set_yticklabels(list(names))
-    ax.set_xlabel("time [s]")
-    ax.set_title(title or "active observers")
-    return ax
-
-
-def plot_image_tracks(image: np.ndarray, uv_px: np.ndarray, correct: np.ndarray | None = None, *, ax=None,
-                      title: str = ""):
-    """An image with its track positions (green: correct per ground truth, red: false match)."""
-    ax = _axes(ax)
-    ax.imshow(image, cmap="gray", vmin=0, vmax=255)
-    uv = np.asarray(uv_px, dtype=float)
-    ok = np.isfinite(uv).all(-1)
-    c = np.ones(len(uv), bool) if correct is None else np.asarray(correct, bool)
-    ax.scatter(uv[ok & c, 0], uv[ok & c, 1], s=4, c="lime", linewidths=0)
-    ax.scatter(uv[ok & ~c, 0], uv[ok & ~c, 1], s=6, c="red", linewidths=0)
-    if ok.any():
-        pad = 40
-        ax.set_xlim(max(uv[ok, 0].min() - pad, 0), min(uv[ok, 0].max() + pad, image.shape[1]))
-        ax.set_ylim(min(uv[ok, 1].max() + pad, image.shape[0]), max(uv[ok, 1].min() - pad, 0))
-    ax.set_axis_off()
-    ax.set_title(title, fontsize=8)
-    return ax
-
-
-def plot_cloud(X: np.ndarray, *, ax=None, title: str = "", color=None):
-    """3-D scatter of a point cloud ``X (N, 3)`` (metres), equal axes."""
-    if ax is None:
-        fig = plt.figure(figsize=(5.0, 4.5), layout="constrained")
-        ax = fig.add_subplot(projection="3d")
-    X = np.asarray(X, dtype=float)
-    ax.scatter(X[:, 0], X[:, 1], X[:, 2], s=2, c=color if color is not None else X[:, 2], cmap="viridis")
-    span = np.nanmax(np.ptp(X, axis=0)) if len(X) else 1.0
-    mid = np.nanmean(X, axis=0) if len(X) else np.zeros(3)
-    for set_lim, m in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), mid, strict=True):
-        set_lim(m - span / 2, m + span / 2)
-    ax.set_xlabel("x_H [m]")
-    ax.set_ylabel("y_H [m]")
-    ax.set_zlabel("z_H [m]")
-    ax.set_title(title)
-    return ax
-
-
-def plot_histogram(values: np.ndarray, *, ax=None, bins: int = 30, label: str = "", xlabel: str = "",
-                   vline: float | None = None, vline_label: str = ""):
-    """Histogram of finite ``values`` with an optional reference line."""
-    ax = _axes(ax)
-    v = np.asarray(values, dtype=float)
-    ax.hist(v[np.isfinite(v)], bins=bins, alpha=0.6, label=label)
-    if vline is not None and np.isfinite(vline):
-        ax.axvline(vline, color="k", linestyle="--", label=vline_label)
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel("trials")
-    ax.legend(fontsize=7)
-    return ax
 
 
 def _combos(ds: xr.Dataset, dims: Sequence[str]) -> list[dict]:
@@ -345,7 +136,7 @@ def ekf_figures(ds: xr.Dataset, fig_dir: Path) -> list[Path]:
     """003 Figs 7–12 from an ``ekf`` study: component errors of one run (Figs 7–8) and ``typical_runs``
     runs of the attitude and rate errors per case (Figs 9–12).
 
-    The attitude error is the rotation angle (SEEDS_SPEC §3.7): 003 eq (36) on 3-2-1 Euler angles
+    The attitude error is the rotation angle (flag P003-14, docs/papers.md#p003-14): 003 eq (36) on 3-2-1 Euler angles
     is kept in the dataset (``euler_error_deg``) but blows up near pitch ±90° (gimbal lock).
     """
     paths: list[Path] = []

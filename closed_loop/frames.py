@@ -1,0 +1,81 @@
+"""Frames: an epoch's observation with its triangulated cloud (003 §2.1, multi-view triangulation)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from reconstruction.triangulation import Triangulation, triangulate, triangulate_from_observation
+from vision.observation import Observation
+
+__all__ = ["Frame", "reconstruct", "reconstruct_many"]
+
+
+@dataclass(frozen=True)
+class Frame:
+    """An epoch's observation and its triangulated cloud.
+
+    Attributes
+    ----------
+    obs : vision.observation.Observation
+        Multi-view tracks of the epoch.
+    tri : reconstruction.triangulation.Triangulation
+        One point per track, in the frame of the cameras' poses (H), m.
+    """
+
+    obs: Observation
+    tri: Triangulation
+
+    @property
+    def ok(self) -> bool:
+        """The observation succeeded and at least one point was triangulated."""
+        return bool(self.obs.ok and np.all(self.tri.ok))
+
+    @property
+    def failure_reason(self) -> str:
+        """``""`` when :attr:`ok`, else why the observation or the triangulation failed."""
+        if not self.obs.ok:
+            return str(self.obs.failure_reason)
+        return "" if self.ok else str(self.tri.failure_reason)
+
+
+def reconstruct(obs: Observation) -> Frame:
+    """Triangulate an observation (an empty or failed observation gives a flagged frame)."""
+    return Frame(obs=obs, tri=triangulate_from_observation(obs))
+
+
+def reconstruct_many(observations: Sequence[Observation]) -> list[Frame]:
+    """:func:`reconstruct` for several epochs of the same cameras in one batched triangulation.
+
+    The tracks are padded with NaN to a common count (padding rows come back invalid), solved in
+    one call of :func:`reconstruction.triangulation.triangulate`, and sliced back per epoch.
+    """
+    good = [o for o in observations if o.ok and o.n_tracks > 0]
+    if len(good) < 2 or any(o.n_views != good[0].n_views for o in good):
+        return [reconstruct(o) for o in observations]
+    m = max(o.n_tracks for o in good)
+    n = good[0].n_views
+    uv = np.full((len(good), m, n, 2), np.nan)
+    for e, o in enumerate(good):
+        uv[e, : o.n_tracks] = o.uv_px
+    batch = triangulate(uv, good[0].K, good[0].T_CW, pixel_sigma_px=good[0].pixel_sigma_px)
+    frames: list[Frame] = []
+    e = 0
+    for o in observations:
+        if not (o.ok and o.n_tracks > 0):
+            frames.append(reconstruct(o))
+            continue
+        k = o.n_tracks
+        sl = (e, slice(0, k))
+        n_valid = int(np.sum(batch.valid[sl]))
+        tri = Triangulation(
+            X_W=batch.X_W[sl], cov_W=batch.cov_W[sl], valid=batch.valid[sl], failure_code=batch.failure_code[sl],
+            views_used=batch.views_used[sl], n_views=batch.n_views[sl],
+            rms_reprojection_px=batch.rms_reprojection_px[sl], chi2=batch.chi2[sl],
+            n_valid=np.asarray(n_valid), ok=n_valid > 0,
+            failure_reason="" if n_valid > 0 else str(np.asarray(batch.failure_reason)[e]))
+        frames.append(Frame(obs=o, tri=tri))
+        e += 1
+    return frames

@@ -1,0 +1,156 @@
+"""Observers: how the cameras see the target at one epoch (rendered images or the geometric model).
+
+An :class:`Observer` turns camera poses, the target's attitude in H and the Sun direction into a
+:class:`vision.observation.Observation` (multi-view feature tracks).  :data:`OBSERVERS` lists the
+alternatives by the names the configs use.
+"""
+
+from __future__ import annotations
+
+import functools
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from closed_loop.registry import Registry
+from vision.camera import PinholeCamera
+from vision.observation import Observation
+from vision.target import Target
+
+__all__ = ["Observer", "RenderedObserver", "GeometricObserver", "OBSERVERS"]
+
+
+def _unit(sun_H: np.ndarray) -> np.ndarray:
+    sun = np.asarray(sun_H, dtype=float)
+    return sun / np.linalg.norm(sun)
+
+
+class Observer(ABC):
+    """One epoch seen by ``n`` identical cameras aimed at the target."""
+
+    camera: PinholeCamera
+    target: Target
+
+    @abstractmethod
+    def observe(self, T_CW: np.ndarray, q_HT: np.ndarray, sun_H: np.ndarray, *, rng: np.random.Generator,
+                sun_visible_fraction: float = 1.0) -> Observation:
+        """Observe the target once.
+
+        Parameters
+        ----------
+        T_CW : ndarray (n, 4, 4)
+            Camera poses (H → camera frame C), m.
+        q_HT : ndarray (4,)
+            Target attitude in H, scalar-first ``[w, x, y, z]``.
+        sun_H : ndarray (3,)
+            Direction to the Sun in H (any length; normalised here).
+        rng : numpy.random.Generator
+            The epoch's random stream (split per camera inside the observation).
+        sun_visible_fraction : float
+            Fraction of the solar disc visible from the target (0 in Earth's shadow).
+
+        Returns
+        -------
+        vision.observation.Observation
+            The tracks of the epoch (an empty, flagged observation when nothing is seen).
+        """
+
+
+@dataclass(frozen=True)
+class RenderedObserver(Observer):
+    """Ray-cast images, a feature detector and multi-view matching (:func:`vision.rendered.observe`).
+
+    Attributes
+    ----------
+    camera : vision.camera.PinholeCamera
+    target : vision.target.Target
+    pixel_sigma_px : float
+        Feature localisation noise σ given to the tracks, px.
+    detector : str
+        ``"sift"``, ``"orb"``, ``"akaze"`` or ``"surf"``.
+    """
+
+    camera: PinholeCamera
+    target: Target
+    pixel_sigma_px: float = 0.5
+    detector: str = "sift"
+
+    def observe(self, T_CW: np.ndarray, q_HT: np.ndarray, sun_H: np.ndarray, *, rng: np.random.Generator,
+                sun_visible_fraction: float = 1.0) -> Observation:
+        """Render every camera's image and match the features across the views (see :meth:`Observer.observe`)."""
+        from vision.rendered import observe
+
+        return observe(self.camera, T_CW, self.target, q_HT, _unit(sun_H), rng=rng, detector=self.detector,
+                       pixel_sigma_px=self.pixel_sigma_px, sun_visible_fraction=sun_visible_fraction)
+
+
+@functools.lru_cache(maxsize=4)
+def _surface_features(target: Target, n_features: int):
+    from vision.geometric import surface_features
+
+    return surface_features(target, n_features=n_features)
+
+
+@dataclass(frozen=True)
+class GeometricObserver(Observer):
+    """Surface features projected with noise, occlusion and false matches (:mod:`vision.geometric`).
+
+    Attributes
+    ----------
+    camera : vision.camera.PinholeCamera
+    target : vision.target.Target
+    pixel_sigma_px : float
+        Feature localisation noise σ, px.
+    false_match_fraction : float
+        Fraction of tracks that are false matches.
+    n_features : int
+        Surface features sampled on the target (sampled once per target and count, then reused).
+    """
+
+    camera: PinholeCamera
+    target: Target
+    pixel_sigma_px: float = 0.5
+    false_match_fraction: float = 0.02
+    n_features: int = 2000
+
+    def observe(self, T_CW: np.ndarray, q_HT: np.ndarray, sun_H: np.ndarray, *, rng: np.random.Generator,
+                sun_visible_fraction: float = 1.0) -> Observation:
+        """Project the visible features into every camera (see :meth:`Observer.observe`)."""
+        return self.observe_epochs(np.asarray(T_CW)[None], np.asarray(q_HT)[None], _unit(sun_H)[None], rng=rng,
+                                   sun_visible_fraction=sun_visible_fraction)[0]
+
+    def observe_epochs(self, T_CW: np.ndarray, q_HT: np.ndarray, sun_H: np.ndarray, *, rng: np.random.Generator,
+                       sun_visible_fraction: float | np.ndarray = 1.0) -> Sequence[Observation]:
+        """``E`` epochs in one batched call (:func:`vision.geometric.observe_epochs`).
+
+        Parameters
+        ----------
+        T_CW : ndarray (E, n, 4, 4)
+            Camera poses per epoch.
+        q_HT : ndarray (E, 4)
+            Target attitudes in H.
+        sun_H : ndarray (E, 3)
+            Unit directions to the Sun in H (used as given).
+        rng : numpy.random.Generator
+            One stream for the whole call: the draws depend on all the epochs, so a call must cover
+            one trial's epochs only.
+        sun_visible_fraction : float or ndarray (E,)
+
+        Returns
+        -------
+        list of vision.observation.Observation
+            One per epoch.
+        """
+        from vision.geometric import observe_epochs
+
+        return observe_epochs(self.camera, T_CW, self.target, q_HT, sun_H, rng=rng,
+                              features=_surface_features(self.target, int(self.n_features)),
+                              pixel_sigma_px=self.pixel_sigma_px, false_match_fraction=self.false_match_fraction,
+                              sun_visible_fraction=sun_visible_fraction)
+
+
+#: observation mode (config ``observation.mode``) → observer class
+OBSERVERS: Registry[type[Observer]] = Registry("observer", {"rendered": RenderedObserver,
+                                                            "geometric": GeometricObserver})

@@ -1,0 +1,251 @@
+"""Registrars: the attitude increment of the target between two epochs' clouds (003 eq 11–13, 30–32).
+
+A :class:`Registrar` associates the tracks of two :class:`closed_loop.frames.Frame` objects
+(:func:`reconstruction.association.associate_from_observations`) and fits the rigid motion of the
+matched points; the rotation is the target's attitude increment in the observation frame H
+(003 eq 31–32: ``ρ_H(now) = ΔR ρ_H(prev)``).  :data:`REGISTRARS` lists the alternatives by the
+names the configs use (``estimator.registration``).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from attitude.quaternion import quat_from_matrix
+from closed_loop.frames import Frame
+from closed_loop.registry import Registry
+from filters import IncrementMeasurement
+from reconstruction.association import associate_from_observations
+from reconstruction.registration import RigidRegistration, fit_rigid, fit_rigid_ml, fit_rigid_robust
+
+__all__ = [
+    "MatchedClouds",
+    "RegistrationIncrement",
+    "Registrar",
+    "KabschRegistrar",
+    "RobustKabschRegistrar",
+    "MLRegistrar",
+    "REGISTRARS",
+    "residual_rotation_covariance",
+]
+
+
+@dataclass(frozen=True)
+class MatchedClouds:
+    """The associated points of two epochs, row ``i`` of each array the same surface point.
+
+    Attributes
+    ----------
+    P_H, Q_H : ndarray (k, 3)
+        Points at the earlier and at the later epoch, H, m.
+    cov_P_H, cov_Q_H : ndarray (k, 3, 3)
+        Their triangulation covariances, m².
+    weight_P, weight_Q : ndarray (k,)
+        Scalar triangulation weights (:attr:`reconstruction.triangulation.Triangulation.weight`).
+    """
+
+    P_H: np.ndarray
+    Q_H: np.ndarray
+    cov_P_H: np.ndarray
+    cov_Q_H: np.ndarray
+    weight_P: np.ndarray
+    weight_Q: np.ndarray
+
+
+@dataclass(frozen=True)
+class RegistrationIncrement:
+    """The registered attitude increment between two frames.
+
+    Attributes
+    ----------
+    R_H : ndarray (3, 3)
+        Estimated increment ΔR in H, ``ρ_H(now) = ΔR ρ_H(prev)`` (NaN when not ok).
+    cov_rotvec_H : ndarray (3, 3)
+        Covariance of the left rotation-vector error, rad² (from the fit, else from its residuals);
+        NaN when unavailable.
+    n_matches : int
+        Associated point pairs.
+    n_inliers : int
+        Pairs used in the final fit.
+    ok : bool
+    failure_reason : str
+        ``""`` when ok.
+    """
+
+    R_H: np.ndarray
+    cov_rotvec_H: np.ndarray
+    n_matches: int
+    n_inliers: int
+    ok: bool
+    failure_reason: str
+
+    @classmethod
+    def failed(cls, failure_reason: str, n_matches: int = 0) -> RegistrationIncrement:
+        """A failed increment (NaN rotation and covariance)."""
+        return cls(np.full((3, 3), np.nan), np.full((3, 3), np.nan), n_matches, 0, False, failure_reason)
+
+    @property
+    def usable(self) -> bool:
+        """Ok and with a finite covariance: the filter can take it."""
+        return bool(self.ok and np.all(np.isfinite(self.cov_rotvec_H)))
+
+    def measurement(self, R_NH_prev: np.ndarray, R_NH_now: np.ndarray) -> IncrementMeasurement | None:
+        """The filter measurement of this increment (:class:`filters.IncrementMeasurement`), or ``None``.
+
+        Parameters
+        ----------
+        R_NH_prev, R_NH_now : ndarray (3, 3)
+            Hill frame at the earlier epoch and now (``v_N = R_NH v_H``).
+
+        Returns
+        -------
+        filters.IncrementMeasurement or None
+            ``None`` when the increment is not :attr:`usable` (the filter then only re-clones).
+        """
+        if not self.usable:
+            return None
+        return IncrementMeasurement(dq_H=quat_from_matrix(self.R_H)[None], cov_rotvec_H=self.cov_rotvec_H[None],
+                                    R_NH_prev=R_NH_prev, R_NH_now=R_NH_now, cov_side="left")
+
+
+class Registrar(ABC):
+    """Associates two frames' tracks and fits the rigid motion of the matched points.
+
+    Subclasses implement :meth:`fit`; :meth:`register` does the association and bookkeeping.
+    """
+
+    @abstractmethod
+    def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator) -> RigidRegistration:
+        """Fit ``Q ≈ R P + t`` to the matched points.
+
+        Parameters
+        ----------
+        pairs : MatchedClouds
+            Associated points of the two epochs, with their covariances and weights.
+        rng : numpy.random.Generator
+            The registration stream (RANSAC draws); deterministic fits ignore it.
+
+        Returns
+        -------
+        reconstruction.registration.RigidRegistration
+            ``R`` is the attitude increment in H; ``cov[:3, :3]`` its left rotation-vector
+            covariance (NaN when the method gives none).
+        """
+
+    def register(self, prev: Frame, curr: Frame, *, rng: np.random.Generator,
+                 with_covariance: bool = True) -> RegistrationIncrement:
+        """The attitude increment from ``prev`` to ``curr``.
+
+        Parameters
+        ----------
+        prev, curr : closed_loop.frames.Frame
+            Earlier and later epoch, seen by the same cameras.
+        rng : numpy.random.Generator
+            Registration stream.
+        with_covariance : bool
+            When the fit gives no covariance (Kabsch, RANSAC), estimate it from the fit's residuals
+            (:func:`residual_rotation_covariance`; the filter needs it, the error maps do not).
+
+        Returns
+        -------
+        RegistrationIncrement
+            Never raises for bad data: a failed frame, association or fit is reported in
+            ``ok`` / ``failure_reason``.
+        """
+        if not prev.ok:
+            return RegistrationIncrement.failed(f"previous epoch: {prev.failure_reason}")
+        if not curr.ok:
+            return RegistrationIncrement.failed(f"this epoch: {curr.failure_reason}")
+        assoc = associate_from_observations(prev.obs, curr.obs, prev.tri, curr.tri)
+        k = int(assoc.idx_prev.size)
+        if not assoc.ok:
+            return RegistrationIncrement.failed(f"association: {assoc.failure_reason}", k)
+        ip, iq = assoc.idx_prev, assoc.idx_next
+        pairs = MatchedClouds(P_H=prev.tri.X_W[ip], Q_H=curr.tri.X_W[iq], cov_P_H=prev.tri.cov_W[ip],
+                              cov_Q_H=curr.tri.cov_W[iq], weight_P=prev.tri.weight[ip], weight_Q=curr.tri.weight[iq])
+        reg = self.fit(pairs, rng=rng)
+        if not bool(reg.ok):
+            return RegistrationIncrement.failed(f"registration: {reg.failure_reason}", k)
+        cov = reg.cov[:3, :3]
+        if with_covariance and not np.all(np.isfinite(cov)):
+            cov = residual_rotation_covariance(pairs.P_H, pairs.Q_H, reg)
+        return RegistrationIncrement(R_H=reg.R, cov_rotvec_H=cov, n_matches=k, n_inliers=int(reg.n_inliers),
+                                     ok=True, failure_reason="")
+
+
+@dataclass(frozen=True)
+class KabschRegistrar(Registrar):
+    """The paper's weighted rigid registration, 003 eq (11)–(13).
+
+    Weights ``1 / (w_P⁻¹ + w_Q⁻¹)`` of the two points' triangulation weights (the paper's
+    ``1/(W_ρ + ε₀)``, flag P003-4, docs/papers.md#p003-4).
+    """
+
+    def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator) -> RigidRegistration:
+        """Weighted Kabsch fit (:func:`reconstruction.registration.fit_rigid`); ``rng`` is unused."""
+        w = 1.0 / (pairs.weight_P ** -1 + pairs.weight_Q ** -1)
+        return fit_rigid(pairs.P_H, pairs.Q_H, weights=w)
+
+
+@dataclass(frozen=True)
+class RobustKabschRegistrar(Registrar):
+    """Kabsch after a 3-point RANSAC with the covariance chi-square gate (flag P003-6's check,
+    docs/papers.md#p003-6; :func:`reconstruction.registration.fit_rigid_robust`)."""
+
+    def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator) -> RigidRegistration:
+        """RANSAC on the covariance-gated residuals, then a Kabsch fit of the inliers."""
+        return fit_rigid_robust(pairs.P_H, pairs.Q_H, cov_P=pairs.cov_P_H, cov_Q=pairs.cov_Q_H, rng=rng)
+
+
+@dataclass(frozen=True)
+class MLRegistrar(Registrar):
+    """Covariance-aware maximum-likelihood registration (:func:`reconstruction.registration.fit_rigid_ml`).
+
+    It attains the Cramér–Rao bound of :func:`reconstruction.accuracy.attitude_increment_crlb`
+    and gives the increment's covariance itself.
+    """
+
+    def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator) -> RigidRegistration:
+        """Maximum-likelihood fit with the points' full covariances (robust start drawn from ``rng``)."""
+        return fit_rigid_ml(pairs.P_H, pairs.Q_H, pairs.cov_P_H, pairs.cov_Q_H, rng=rng)
+
+
+def residual_rotation_covariance(P: np.ndarray, Q: np.ndarray, reg: RigidRegistration) -> np.ndarray:
+    """Rotation covariance of a least-squares rigid fit from its own residuals (Kabsch, RANSAC).
+
+    With isotropic residuals of variance ``σ² = Σ‖rᵢ‖² / (3N − 6)`` per axis, the left rotation
+    error of the fit has covariance ``σ² (Σᵢ [Q̃ᵢ×]ᵀ [Q̃ᵢ×])⁻¹`` (``Q̃`` the inlier points about their
+    centroid).  Unlike the Cramér–Rao bound this describes the estimator actually used: the spread of
+    its residuals includes the depth-elongated triangulation errors it does not weight.
+
+    Parameters
+    ----------
+    P, Q : ndarray (k, 3)
+        The fitted point pairs, m.
+    reg : reconstruction.registration.RigidRegistration
+        The fit (``R``, ``t``, ``inliers``).
+
+    Returns
+    -------
+    ndarray (3, 3)
+        Covariance, rad² (NaN with fewer than 3 finite inliers).
+    """
+    inl = np.asarray(reg.inliers, dtype=bool) & np.all(np.isfinite(P), -1) & np.all(np.isfinite(Q), -1)
+    n = int(inl.sum())
+    if n < 3:
+        return np.full((3, 3), np.nan)
+    p, q = P[inl], Q[inl]
+    r = q - p @ reg.R.T - reg.t
+    sigma2 = float(np.sum(r * r) / max(3 * n - 6, 1))
+    qc = q - q.mean(axis=0)
+    info = np.sum(qc * qc) * np.eye(3) - qc.T @ qc  # Σ [q̃×]ᵀ[q̃×] = Σ (|q̃|² I − q̃ q̃ᵀ)
+    return sigma2 * np.linalg.inv(info)
+
+
+#: registration method (config ``estimator.registration``) → registrar class
+REGISTRARS: Registry[type[Registrar]] = Registry("registrar", {"kabsch": KabschRegistrar,
+                                                               "ransac": RobustKabschRegistrar,
+                                                               "ml": MLRegistrar})

@@ -1,0 +1,210 @@
+"""003 Experiment A (Figs 5–6): the registration error of one (distance, axis angle, views) cell.
+
+For each trial a random initial attitude is followed by ``steps`` equal increments Δθ (a rotation
+vector in H, applied on the left as in 003 eq 32); every epoch is observed by the symmetric cone,
+triangulated, associated with the previous one and registered (the :mod:`closed_loop` parts the
+config names).  The metric is 003 eq (33), ``e_Δθ = ‖mean_k Δθ̂_k − Δθ‖``, with the per-step RMS
+error and the Cramér–Rao bound of the same geometry beside it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import xarray as xr
+
+from attitude.quaternion import (
+    matrix_from_quat,
+    quat_from_matrix,
+    quat_from_rotvec,
+    quat_multiply,
+    quat_normalize,
+    rotvec_from_quat,
+)
+from closed_loop import Frame, GeometricObserver, reconstruct_many
+from experiments.scenarios.formation.config import Config
+from experiments.scenarios.formation.parts import (
+    load_target,
+    make_camera,
+    make_observer,
+    make_registrar,
+    symmetric_T_CW,
+)
+from experiments.sweep import Metric, SweepCell, cell_seed_sequences, child_seeds
+from reconstruction.accuracy import attitude_increment_crlb
+
+__all__ = ["random_attitudes", "error_map_trials", "error_map_cell", "error_map_sweep_cell", "error_map_run"]
+
+
+def random_attitudes(rng: np.random.Generator, n: int | None = None) -> np.ndarray:
+    """Uniformly distributed attitudes (normalised 4-D Gaussian), ``(4,)`` or ``(n, 4)``."""
+    q = rng.normal(size=(4,) if n is None else (n, 4))
+    return quat_normalize(q)
+
+
+def _crlb_deg(frame: Frame, q_HT: np.ndarray, dq_H: np.ndarray, T_CW: np.ndarray) -> float:
+    """Cramér–Rao bound of one increment for the true surface points the cameras track."""
+    obs = frame.obs
+    good = obs.feature_id >= 0
+    if good.sum() < 3:
+        return float("nan")
+    X_W = obs.X_T_true[good] @ matrix_from_quat(q_HT).T
+    b = attitude_increment_crlb(X_W, obs.K, T_CW, pixel_sigma_px=obs.pixel_sigma_px,
+                                visible=obs.seen[good], R_delta=matrix_from_quat(dq_H))
+    return float(np.degrees(b.rms_angle_rad)) if bool(b.ok) else float("nan")
+
+
+def error_map_trials(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> dict[str, np.ndarray]:
+    """Experiment A at one (distance, axis angle, views): one trial per seed.
+
+    Each trial: a uniformly random initial attitude ``q_HT0``, then ``steps`` increments
+    ``Δq = exp(Δθ/2)`` applied on the left (H frame, 003 eq 32), observed, triangulated, associated
+    and registered.  Three streams per trial (children of its seed): the initial attitude, the
+    observations of all its epochs, and the registration (RANSAC).
+
+    Returns
+    -------
+    dict of (trials,) arrays
+        ``e_dtheta_deg`` (003 eq 33), ``step_rms_deg`` (RMS over steps of the rotation angle of
+        ``ΔR̂ ΔRᵀ``), ``crlb_deg`` (Cramér–Rao RMS bound of one increment at the first step),
+        ``n_tracks``, ``n_matches``, ``n_inliers`` (medians over the epochs / steps),
+        ``failed_steps``, and ``failure_reason``.
+    """
+    observer = make_observer(cfg, make_camera(cfg), load_target(cfg))
+    registrar = make_registrar(cfg)
+    T_CW = symmetric_T_CW(cfg)
+    dtheta = np.deg2rad(np.asarray(cfg.error_map.step_deg, dtype=float))
+    dq = quat_from_rotvec(dtheta)
+    dR = matrix_from_quat(dq)
+    steps = cfg.error_map.steps
+    M = len(seeds)
+    out = {k: np.full(M, np.nan) for k in ("e_dtheta_deg", "step_rms_deg", "crlb_deg", "n_tracks",
+                                           "n_matches", "n_inliers", "failed_steps")}
+    reasons = np.array([""] * M, dtype=object)
+    sun = np.asarray(cfg.observation.sun_H, dtype=float)
+    for t, ss in enumerate(seeds):
+        s_att, s_obs, s_reg = child_seeds(ss, 3)
+        q0 = random_attitudes(np.random.default_rng(s_att))
+        qs = [q0]
+        for _ in range(steps):
+            qs.append(quat_normalize(quat_multiply(dq, qs[-1])))
+        qs = np.array(qs)
+        if isinstance(observer, GeometricObserver):  # all epochs of the trial in one batched call
+            sun_E = np.broadcast_to(sun / np.linalg.norm(sun), (steps + 1, 3))
+            observations = observer.observe_epochs(np.broadcast_to(T_CW, (steps + 1, *T_CW.shape)), qs, sun_E,
+                                                   rng=np.random.default_rng(s_obs))
+        else:
+            obs_rngs = np.random.default_rng(s_obs).spawn(steps + 1)
+            observations = [observer.observe(T_CW, qs[k], sun, rng=obs_rngs[k]) for k in range(steps + 1)]
+        reg_rng = np.random.default_rng(s_reg)
+        frames = reconstruct_many(observations)
+        est, errs, inliers, matches = [], [], [], []
+        tracks = [f.obs.n_tracks for f in frames]
+        out["crlb_deg"][t] = _crlb_deg(frames[0], qs[0], dq, T_CW)
+        why = ""
+        for k in range(1, steps + 1):
+            inc = registrar.register(frames[k - 1], frames[k], rng=reg_rng, with_covariance=False)
+            matches.append(inc.n_matches)
+            if inc.ok:
+                inliers.append(inc.n_inliers)
+                est.append(rotvec_from_quat(quat_from_matrix(inc.R_H)))
+                errs.append(np.linalg.norm(rotvec_from_quat(quat_from_matrix(inc.R_H @ dR.T))))
+            else:
+                why = why or inc.failure_reason
+        out["n_tracks"][t] = np.median(tracks)
+        out["n_matches"][t] = np.median(matches) if matches else 0
+        out["failed_steps"][t] = steps - len(est)
+        if not est:
+            reasons[t] = f"every step failed; first: {why}"
+            continue
+        out["n_inliers"][t] = np.median(inliers)
+        out["e_dtheta_deg"][t] = np.degrees(np.linalg.norm(np.mean(est, axis=0) - dtheta))
+        out["step_rms_deg"][t] = np.degrees(np.sqrt(np.mean(np.square(errs))))
+    out["failure_reason"] = reasons
+    return out
+
+
+def error_map_cell(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> dict[str, np.ndarray]:
+    """Sweep cell of Experiment A (:func:`error_map_trials`), plus the filter-driven convergence.
+
+    With ``error_map.filter_runs > 0`` the EKF of 003 Experiments B–D is run ``filter_runs`` times
+    with measurements whose attitude-angle error is this cell's median measured error
+    (``error_map.filter_error``: the per-step RMS by default, or e_Δθ) — the paper's way of
+    producing Figs 11–12 from Figs 5–6 — giving the fraction of converged runs and the median
+    convergence time of the cell.
+    """
+    out = error_map_trials(cfg, seeds)
+    runs = cfg.error_map.filter_runs
+    frac = tmed = e_used = np.nan
+    if runs > 0:
+        from experiments.scenarios.formation.ekf import monte_carlo, role_generator, truth_history
+
+        stat = out["step_rms_deg" if cfg.error_map.filter_error == "step_rms" else "e_dtheta_deg"]
+        e = stat[np.isfinite(stat)]
+        if e.size:
+            e_used = float(np.median(e))
+            t, q, w = truth_history(cfg)
+            mc = monte_carlo(cfg, t, q, w, e_deg=e_used, window=None, runs=runs, rng=role_generator(seeds, 2))
+            frac = mc.fraction_converged
+            tmed = mc.median_convergence_time_s
+    out["filter_measurement_error_deg"] = np.asarray(e_used)
+    out["filter_fraction_converged"] = np.asarray(frac)
+    out["filter_median_convergence_time_s"] = np.asarray(tmed)
+    return out
+
+
+def error_map_sweep_cell(cfg: Config) -> SweepCell:
+    """The sweep cell of Experiment A (:func:`error_map_cell`) with its metrics."""
+    return SweepCell(
+        fn=error_map_cell,
+        metrics={
+            "e_dtheta_deg": Metric("deg", long_name="003 eq (33): |mean estimated increment - commanded|"),
+            "step_rms_deg": Metric("deg", long_name="RMS over steps of the increment's rotation error"),
+            "crlb_deg": Metric("deg", long_name="Cramer-Rao RMS bound of one increment"),
+            "n_tracks": Metric("1", long_name="median multi-view tracks per epoch"),
+            "n_matches": Metric("1", long_name="median associated pairs per step"),
+            "n_inliers": Metric("1", long_name="median registration inliers per step"),
+            "failed_steps": Metric("1", long_name="steps whose registration failed"),
+            "filter_measurement_error_deg": Metric("deg", per_trial=False,
+                                                   long_name="EKF measurement error: the cell's median error statistic"),
+            "filter_fraction_converged": Metric("1", per_trial=False,
+                                                long_name="fraction of EKF runs converged"),
+            "filter_median_convergence_time_s": Metric("s", per_trial=False,
+                                                       long_name="median convergence time of the EKF runs"),
+        },
+        name="error_map",
+    )
+
+
+def error_map_run(cfg: Config, *, progress: Callable[[int, int], None] | None = None) -> tuple[xr.Dataset, dict]:
+    """The ``error_map`` study: one cell of Experiment A with ``trials`` initial attitudes.
+
+    Returns the per-trial dataset (the cell's metrics over ``trial``) and a summary of medians.
+    """
+    cell = error_map_sweep_cell(cfg)
+    seeds = cell_seed_sequences(cfg.seed, {}, cfg.trials)
+    if progress:
+        progress(0, 1)
+    out = cell.fn(cfg, seeds)
+    if progress:
+        progress(1, 1)
+    data = {}
+    for name, m in cell.metrics.items():
+        dims = ("trial",) if m.per_trial else ()
+        data[name] = (dims, np.asarray(out[name], dtype=float), {"units": m.units, "long_name": m.long_name})
+    data["failure_reason"] = ("trial", np.asarray(out["failure_reason"]).astype(str))
+    f = cfg.formation
+    ds = xr.Dataset(data, coords={"trial": np.arange(cfg.trials)},
+                    attrs={"study": "error_map", "distance_m": f.distance_m, "axis_angle_deg": f.axis_angle_deg,
+                           "n_views": f.n_views, "registration": cfg.estimator.registration,
+                           "observation_mode": cfg.observation.mode})
+    e = ds.e_dtheta_deg.values
+    summary = {
+        "distance_m": f.distance_m, "axis_angle_deg": f.axis_angle_deg, "n_views": f.n_views,
+        "median_e_dtheta_deg": float(np.nanmedian(e)) if np.isfinite(e).any() else float("nan"),
+        "median_step_rms_deg": float(np.nanmedian(ds.step_rms_deg.values)),
+        "median_crlb_deg": float(np.nanmedian(ds.crlb_deg.values)),
+        "failed_trials": int((ds.failure_reason.values != "").sum()),
+    }
+    return ds, summary
