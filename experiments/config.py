@@ -1,13 +1,15 @@
-"""Scenario configs: the frozen pydantic base every scenario kind's ``Config`` subclasses, and loading.
+"""Scenario configs: the frozen pydantic base every kind's ``Config`` subclasses, the kinds, and loading.
 
-Every config file names its scenario kind at the top level (``kind = "tof_000"``); the rest of the
-file is validated by that kind's model before any work starts.  Bad configs raise
-:class:`ConfigError` with one line naming the key.
+Every config file names its scenario kind at the top level (``kind = "tof_000"``); :data:`KINDS`
+maps it to the module that implements it (the kind protocol is described in
+:mod:`experiments.scenarios`), and the rest of the file is validated by that kind's model before any
+work starts.  Bad configs raise :class:`ConfigError` with one line naming the key.
 """
 
 from __future__ import annotations
 
 import copy
+import importlib
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -17,9 +19,9 @@ from typing import Any
 import pydantic
 from pydantic import BaseModel, ConfigDict
 
-from experiments.scenarios import KINDS, UnknownKindError, kind_module
-
 __all__ = [
+    "KINDS",
+    "kind_module",
     "ConfigError",
     "ConfigTable",
     "ScenarioConfig",
@@ -29,8 +31,55 @@ __all__ = [
 ]
 
 
+#: scenario kind → module implementing it (imported on demand, by name, so that no kind is loaded
+#: before it is used and no kind module is imported by this one).
+KINDS: dict[str, str] = {
+    "formation": "experiments.scenarios.formation",
+    "tof_000": "experiments.scenarios.tof",
+    "rodrigues_001": "experiments.scenarios.rodrigues",
+    "cylindrical_004": "experiments.scenarios.cylindrical",
+}
+
+
 class ConfigError(ValueError):
     """A config that cannot be run; the message is one line naming the key."""
+
+
+def kind_module(kind: str) -> ModuleType:
+    """Import the module of a scenario kind.
+
+    Parameters
+    ----------
+    kind : str
+        A key of :data:`KINDS`.
+
+    Returns
+    -------
+    ModuleType
+        The kind module (a sub-package of :mod:`experiments.scenarios`).
+
+    Raises
+    ------
+    ConfigError
+        ``kind`` is not registered.
+
+    Notes
+    -----
+    A kind module exposes
+
+    ``Config``
+        its config model, a subclass of :class:`ScenarioConfig` whose ``kind`` is ``Literal["<kind>"]``;
+    ``run(cfg, *, progress=None) -> ScenarioResult``
+        the scenario, pure computation plus the ``progress(done, total)`` callback
+        (:class:`experiments.results.ScenarioResult`);
+    ``plot(dataset, fig_dir) -> list[Path]``
+        figures drawn only from the stored dataset (so ``coobs plot DIR`` can redraw them);
+
+    and optionally ``sweep_cell(cfg) -> SweepCell`` (``coobs sweep``) and ``plot_sweep(dataset, fig_dir)``.
+    """
+    if kind not in KINDS:
+        raise ConfigError(f"kind: unknown scenario kind {kind!r}; known: {', '.join(sorted(KINDS))}")
+    return importlib.import_module(KINDS[kind])
 
 
 class ConfigTable(BaseModel):
@@ -48,7 +97,7 @@ class ScenarioConfig(ConfigTable):
     Attributes
     ----------
     kind : str
-        The scenario kind (a key of :data:`experiments.scenarios.KINDS`); subclasses narrow it to
+        The scenario kind (a key of :data:`KINDS`); subclasses narrow it to
         ``Literal["<their kind>"]``.
     """
 
@@ -121,7 +170,7 @@ def load_config(source: Path | str | Mapping[str, Any],
     Returns
     -------
     module : ModuleType
-        The scenario kind (:func:`experiments.scenarios.kind_module`).
+        The scenario kind (:func:`kind_module`).
     cfg : ScenarioConfig
         The validated config, an instance of ``module.Config``.
 
@@ -133,10 +182,7 @@ def load_config(source: Path | str | Mapping[str, Any],
     raw = read_config(source, overrides)
     if "kind" not in raw:
         raise ConfigError(f"kind: missing (one of {', '.join(sorted(KINDS))})")
-    try:
-        module = kind_module(raw["kind"])
-    except UnknownKindError as exc:
-        raise ConfigError(str(exc)) from None
+    module = kind_module(raw["kind"])
     try:
         cfg = module.Config.model_validate(raw)
     except pydantic.ValidationError as exc:

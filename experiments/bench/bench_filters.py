@@ -53,8 +53,8 @@ def _omega(w):
 class FilterpyAttitudeEKF(ExtendedKalmanFilter):
     """One trial of the 003 additive EKF on filterpy: RK4 ``predict_x`` and its Jacobian.
 
-    Written independently of :mod:`filters` (plain per-trial numpy, SEEDS_SPEC §3.3.7), so that
-    agreement with :class:`filters.AttitudeEKF` checks both.
+    Written independently of :mod:`filters` (plain per-trial numpy, the estimation model of
+    003 eqs (23)-(27)), so that agreement with :class:`filters.AttitudeEKF` checks both.
     """
 
     def __init__(self, J, q_psd, w_psd, dt):

@@ -6,8 +6,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from experiments.config import ConfigError
-from experiments.scenarios import UnknownKindError, kind_module
+from experiments.config import ConfigError, kind_module
 from experiments.sweep import STORE_NAME
 from experiments.sweep import redraw as redraw_sweep_store
 
@@ -26,10 +25,7 @@ def redraw_run(out: Path) -> list[Path]:
     kind = ds.attrs.get("kind")
     if kind is None:
         raise ConfigError(f"{out / 'result.nc'}: dataset has no 'kind' attribute")
-    try:
-        module = kind_module(kind)
-    except UnknownKindError as exc:
-        raise ConfigError(str(exc)) from None
+    module = kind_module(kind)
     fig_dir = out / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
     return list(module.plot(ds, fig_dir))

@@ -1,7 +1,7 @@
 """Attitude measurement noise: the error-angle ↔ per-axis σ convention of the 003 EKF study.
 
 003 §3.3 gives the measurement noise of Experiments B–D as an "attitude-angle error" e (0.2°, 0.6°,
-or a range read off Figs 5–6).  SEEDS_SPEC §3.7 fixes the convention: e is the 2-norm of the
+or a range read off Figs 5–6).  coobs fixes the convention (docs/filters.md): e is the 2-norm of the
 three-axis error, so each axis gets ``σ_axis = e/√3`` and a noisy attitude is
 ``q̃ = q ⊗ exp(½ δθ)``, ``δθ ~ N(0, σ_axis² I₃)``.  Then the error angle ``|δθ|`` follows a Maxwell
 distribution with RMS exactly e and mean ``σ_axis √(8/π)``.
@@ -25,7 +25,7 @@ __all__ = ["axis_sigma_rad", "perturb_attitude", "attitude_noise_cell", "ATTITUD
 
 
 def axis_sigma_rad(angle_error_rad: float) -> float:
-    """Per-axis standard deviation ``e/√3`` of an attitude-angle error ``e`` (SEEDS_SPEC §3.7), rad."""
+    """Per-axis standard deviation ``e/√3`` of an attitude-angle error ``e`` (the 2-norm over three axes), rad."""
     e = float(angle_error_rad)
     if not np.isfinite(e) or e < 0:
         raise ValueError(f"angle_error_rad: must be finite and >= 0, got {e!r}")

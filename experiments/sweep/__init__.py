@@ -1,9 +1,4 @@
-"""Parameter sweeps on Dask: a grid over config keys × trials, streamed cell by cell to a zarr store.
-
-A sweep evaluates one cell function (:class:`SweepCell`) at every point of a grid, ``trials`` times
-per point, with reproducible per-trial streams (:func:`cell_seed_sequences`); each finished cell is
-written at once, so a sweep can be resumed; failures become rows with a ``failure_reason``.
-"""
+"""Parameter sweeps on Dask: a grid over config keys × trials, streamed cell by cell to a zarr store."""
 
 from experiments.sweep.cell import Metric, SweepCell
 from experiments.sweep.runner import SweepReport, run_sweep

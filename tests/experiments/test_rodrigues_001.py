@@ -1,4 +1,4 @@
-"""Scenario kind rodrigues_001: paper 001's Table 1 run end to end (SEEDS_SPEC §2.4–2.6, A.2)."""
+"""Scenario kind rodrigues_001: paper 001's Table 1 run end to end (001 Table 1; flag P001-5, docs/papers.md#p001-5)."""
 
 import numpy as np
 import pytest
@@ -21,7 +21,7 @@ def test_switching_never_fails_over_6000_s_and_non_switching_fails_at_the_180_de
     result, calls = full_run
     ds, summary = result.dataset, result.summary
     assert calls[-1] == (1201, 1201)
-    assert abs(summary["crossing_time_s"] - 2228.61) < 0.02  # SEEDS_SPEC A.2: 2228.61 s
+    assert abs(summary["crossing_time_s"] - 2228.61) < 0.02  # flag P001-5: the crossing at 2228.61 s
     assert summary["switching_failures"] == 0
     assert summary["non_switching_first_failure_s"] in (2225.0, 2230.0)  # FLAG P001-5
     ns = ds.sel(solver="non_switching")
