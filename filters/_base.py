@@ -30,6 +30,23 @@ def _eye(n: int) -> np.ndarray:
     return _EYES[n]
 
 
+def _missing(z: object, kind: type) -> bool:
+    """True for ``None`` (no measurement this epoch); ValueError unless ``z`` is a ``kind``."""
+    if z is None:
+        return True
+    if not isinstance(z, kind):
+        raise ValueError(f"z: expected an {kind.__name__} or None, got {type(z).__name__}")
+    return False
+
+
+def _no_measurement(M: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows of an epoch without measurement: identity quaternions, unit covariances, none valid.
+
+    With nothing valid the gain is zero, so these placeholders never reach the estimate.
+    """
+    return np.tile(_IDENTITY_Q, (M, 1)), np.tile(_eye(3), (M, 1, 1)), np.zeros(M, bool)
+
+
 class AttitudeFilter(ABC):
     """Common base of :class:`~filters.AttitudeEKF` and :class:`~filters.MEKF` (not used directly).
 
@@ -422,10 +439,8 @@ class AttitudeFilter(ABC):
         """Checked rows of an absolute-attitude measurement: ``(z (M, 4), cov (M, 3, 3), valid (M,))``."""
         self._check_state(state)
         M = state.n_trials
-        if z is None:
-            return np.tile(_IDENTITY_Q, (M, 1)), np.tile(_eye(3), (M, 1, 1)), np.zeros(M, bool)
-        if not isinstance(z, AbsoluteAttitudeMeasurement):
-            raise ValueError(f"z: expected an AbsoluteAttitudeMeasurement or None, got {type(z).__name__}")
+        if _missing(z, AbsoluteAttitudeMeasurement):
+            return _no_measurement(M)
         q, valid = self._measurement_rows(z.q_NT, M, 4, "q_NT")
         cov, cov_ok = self._cov_rows(z.cov_rotvec_T, M, "cov_rotvec_T")
         return q, cov, valid & cov_ok & ~state.failed
@@ -436,10 +451,8 @@ class AttitudeFilter(ABC):
         if not state.has_clone:
             raise ValueError("state: no clone; call clone(state) at the earlier epoch first")
         M = state.n_trials
-        if z is None:
-            return np.tile(_IDENTITY_Q, (M, 1)), np.tile(_eye(3), (M, 1, 1)), np.zeros(M, bool)
-        if not isinstance(z, IncrementMeasurement):
-            raise ValueError(f"z: expected an IncrementMeasurement or None, got {type(z).__name__}")
+        if _missing(z, IncrementMeasurement):
+            return _no_measurement(M)
         dqH, valid = self._measurement_rows(z.dq_H, M, 4, "dq_H")
         cov, cov_ok = self._cov_rows(z.cov_rotvec_H, M, "cov_rotvec_H")
         Rp = as_batch(z.R_NH_prev, M, (3, 3), "R_NH_prev")
