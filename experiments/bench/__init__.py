@@ -1,10 +1,4 @@
-"""Benchmarks printed by ``coobs bench``: our figure beside the peer library's, as a ratio.
-
-Each module ``experiments/bench/bench_<topic>.py`` defines ``run(*, quick: bool) -> list[BenchRow]``;
-the runner discovers them, so an issue adds rows by adding a module.  ``ratio`` is always
-"how many times better ours is" (higher is better), whatever the unit: for throughputs it is
-ours / peer, for durations peer / ours.
-"""
+"""Benchmarks printed by ``coobs bench``: our figure beside the peer library's, as a ratio."""
 
 from __future__ import annotations
 
@@ -13,6 +7,8 @@ import pkgutil
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+
+__all__ = ["BenchRow", "throughput_row", "duration_row", "best_time", "topics", "run_topic"]
 
 
 @dataclass(frozen=True)
@@ -82,7 +78,13 @@ def topics() -> list[str]:
 
 
 def run_topic(topic: str, *, quick: bool = False) -> list[BenchRow]:
-    """Run one benchmark module and return its rows."""
+    """Run one benchmark module and return its rows.
+
+    Each module ``experiments/bench/bench_<topic>.py`` defines ``run(*, quick: bool) -> list[BenchRow]``
+    and is discovered by :func:`topics`, so a new benchmark is a new module.  ``ratio`` is always
+    "how many times better ours is" (higher is better), whatever the unit: for throughputs it is
+    ours / peer, for durations peer / ours.
+    """
     if topic not in topics():
         raise ValueError(f"topic: unknown benchmark topic {topic!r}; known: {', '.join(topics())}")
     module = importlib.import_module(f"experiments.bench.bench_{topic}")

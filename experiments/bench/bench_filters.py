@@ -25,7 +25,10 @@ from filters import (
     MEKF,
     AbsoluteAttitudeMeasurement,
     AttitudeEKF,
+    AttitudeFilter,
+    FilterState,
     MeasurementModel,
+    MeasurementSeries,
     ProcessNoise,
     draw_initial_estimates,
     simulate_measurements,
@@ -79,7 +82,7 @@ class FilterpyAttitudeEKF(ExtendedKalmanFilter):
         A[4:, 4:] = self.J_inv @ (_skew(self.J @ w) - _skew(w) @ self.J)
         return A
 
-    def predict_x(self, u=0):
+    def predict_x(self, u: float = 0) -> None:
         x, h = self.x, self.dt
         k1 = self._f(x)
         A1 = self._A(x)
@@ -105,7 +108,7 @@ class FilterpyAttitudeEKF(ExtendedKalmanFilter):
         xn[:4] /= np.linalg.norm(xn[:4])
         self.x = xn
 
-    def measurement_cov(self, cov_rotvec):
+    def measurement_cov(self, cov_rotvec: np.ndarray) -> np.ndarray:
         """filterpy UT of ``q ⊗ exp(e/2)`` about the prediction, completed along ``q`` (isotropic)."""
         q = self.x[:4]
         sig = self.points.sigma_points(np.zeros(3), cov_rotvec)
@@ -114,7 +117,8 @@ class FilterpyAttitudeEKF(ExtendedKalmanFilter):
         R = R + np.trace(R) / 3.0 * np.outer(q, q)
         return R + 1e-12 * np.eye(4)
 
-    def step(self, z, cov_rotvec):
+    def step(self, z: np.ndarray | None, cov_rotvec: np.ndarray) -> None:
+        """One predict and, when ``z`` is a finite measurement, one update."""
         self.predict()
         if z is None or not np.all(np.isfinite(z)):
             return
@@ -125,7 +129,8 @@ class FilterpyAttitudeEKF(ExtendedKalmanFilter):
         self.x[:4] /= np.linalg.norm(self.x[:4])
 
 
-def problem(n_trials: int, n_steps: int, *, angle_error_deg: float = 0.2, seed: int = 7):
+def problem(n_trials: int, n_steps: int, *, angle_error_deg: float = 0.2, seed: int = 7
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, MeasurementSeries]:
     """003 Experiment B/C truth, eq (35) initial estimates and absolute measurements."""
     t = np.arange(n_steps + 1) * DT_S
     q, w = propagate_torque_free([1.0, 0, 0, 0], np.deg2rad([5.0, 5.0, 5.0]), J_KG_M2, t)
@@ -135,7 +140,9 @@ def problem(n_trials: int, n_steps: int, *, angle_error_deg: float = 0.2, seed: 
     return t, q, w, q0, w0, meas
 
 
-def run_batched(filt, q0, w0, meas, n_steps):
+def run_batched(filt: AttitudeFilter, q0: np.ndarray, w0: np.ndarray, meas: MeasurementSeries,
+                n_steps: int) -> FilterState:
+    """All trials at once through one of our filters: ``n_steps`` predicts and absolute updates."""
     st = filt.initial_state(q0, w0, filt.initial_covariance())
     for k in range(1, n_steps + 1):
         st = filt.predict(st, DT_S)
@@ -143,7 +150,9 @@ def run_batched(filt, q0, w0, meas, n_steps):
     return st
 
 
-def run_filterpy(q0, w0, meas, n_steps, process_noise: ProcessNoise):
+def run_filterpy(q0: np.ndarray, w0: np.ndarray, meas: MeasurementSeries, n_steps: int,
+                 process_noise: ProcessNoise) -> np.ndarray:
+    """Trial by trial through the filterpy EKF; returns the final states ``(trials, 7)``."""
     out = np.empty((q0.shape[0], 7))
     P0 = AttitudeEKF(J_kg_m2=J_KG_M2).initial_covariance()
     for i in range(q0.shape[0]):

@@ -93,10 +93,10 @@ def plot_band(x: np.ndarray, center: np.ndarray, lo: np.ndarray | None = None, h
     return ax
 
 
-def save(fig: Figure, path: Path) -> Path:
-    """Save a figure as PNG (150 dpi) and close it."""
+def save(fig: Figure, path: Path, *, dpi: int = 150) -> Path:
+    """Save a figure as PNG (``dpi`` dots per inch, 150 by default) and close it; returns ``path``."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=150)
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path
 

@@ -22,7 +22,7 @@ import numpy as np  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from experiments.plotting import axes_or_new  # noqa: E402
+from experiments.plotting import axes_or_new, save  # noqa: E402
 
 __all__ = [
     "CwErrorGrowth",
@@ -137,9 +137,4 @@ def cw_error_growth_figure(data: CwErrorGrowth, *, threshold_m: float = 0.02) ->
 
 def draw_orbit_figures(out_dir: Path) -> list[Path]:
     """Compute the CW error-growth study and write its docs figure, ``out_dir/cw_error_growth.png``."""
-    out = Path(out_dir) / "cw_error_growth.png"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig = cw_error_growth_figure(cw_error_growth_data())
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return [out]
+    return [save(cw_error_growth_figure(cw_error_growth_data()), Path(out_dir) / "cw_error_growth.png", dpi=120)]

@@ -24,6 +24,8 @@ from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.patches import ConnectionPatch  # noqa: E402
 
+from experiments.plotting import save  # noqa: E402
+
 __all__ = ["ThreeViewData", "plot_matched_views", "plot_view", "three_view_data", "three_view_figure",
            "draw_vision_figures"]
 
@@ -138,9 +140,4 @@ def three_view_figure(data: ThreeViewData) -> Figure:
 
 def draw_vision_figures(out_dir: Path) -> list[Path]:
     """Render and match the three-view scene and write its docs figure, ``out_dir/vision_three_views.png``."""
-    out = Path(out_dir) / "vision_three_views.png"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig = three_view_figure(three_view_data())
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return [out]
+    return [save(three_view_figure(three_view_data()), Path(out_dir) / "vision_three_views.png", dpi=110)]

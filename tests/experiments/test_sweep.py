@@ -73,6 +73,7 @@ def test_trial_seeds_depend_only_on_seed_cell_values_and_trial_number():
     assert not np.array_equal(a[0].generate_state(4), a[1].generate_state(4))
 
 
+@pytest.mark.slow
 def test_one_and_two_workers_give_identical_datasets(reference, tmp_path):
     report = run_sweep(ATTITUDE_NOISE_CELL, GRID, trials=TRIALS, out=tmp_path, seed=SEED, workers=2)
     assert report.workers == 2
