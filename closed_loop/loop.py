@@ -31,6 +31,7 @@ __all__ = ["ClosedLoop", "ClosedLoopResult", "Snapshot"]
 INITIAL_EPOCH = "initial epoch"
 SET_CHANGED = "observer set changed"
 NO_COVARIANCE = "increment covariance unavailable"
+NO_PREVIOUS = "previous epoch not observed"
 
 
 @dataclass(frozen=True)
@@ -219,8 +220,8 @@ class ClosedLoop:
                     inc_sigma[k] = np.degrees(np.sqrt(np.trace(inc.cov_rotvec_H)))
                 else:
                     why = why or inc.failure_reason or NO_COVARIANCE
-            elif k > 0 and frame is not None and prev is not None:
-                why = why or SET_CHANGED
+            elif k > 0 and frame is not None:
+                why = why or (SET_CHANGED if prev is not None else NO_PREVIOUS)
             if k > 0:
                 state = filt.update_increment(state, z)
             ok[k] = z is not None

@@ -113,6 +113,7 @@ def test_two_views_bound_the_increment_worse_than_three_at_long_range():
     assert np.median(c2["crlb_deg"]) > 1.2 * np.median(c3["crlb_deg"])
 
 
+@pytest.mark.slow
 def test_error_map_sweep_cli_writes_store_summary_and_figures_then_plot_redraws(tmp_path):
     cfg = _write(tmp_path, """
 kind = "formation"
