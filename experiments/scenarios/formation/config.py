@@ -106,6 +106,7 @@ class TargetConfig(ConfigTable):
         return v
 
     def mesh_path(self) -> Path | None:
+        """The mesh file of the model (``None`` for the procedural FY-1-like target)."""
         if self.model == "fy1":
             return None
         if self.model in BUNDLED_MESHES:
@@ -225,6 +226,7 @@ class TimeConfig(ConfigTable):
         return self
 
     def epochs(self) -> np.ndarray:
+        """Epochs ``(T,)``, s: ``0, dt_s, …`` up to ``duration_s``."""
         n = int(np.floor(self.duration_s / self.dt_s + 1e-9))
         return self.dt_s * np.arange(n + 1)
 
@@ -328,4 +330,5 @@ class Config(ScenarioConfig):
         return np.diag(self.target.inertia_kg_m2)
 
     def omega0_rad_s(self) -> np.ndarray:
+        """Initial body rate ``(3,)``, rad/s."""
         return np.deg2rad(np.asarray(self.target.omega_TN_T0_deg_s, dtype=float))
