@@ -87,7 +87,7 @@ class Scenario001Geometry:
         ``docs/conventions.md``), ``[r, v]`` (m, m/s; rotating-frame velocity).
     x_target_chaser_Hc : ndarray, shape (T, 6)
         Target relative to the chaser in the *chaser's* Hill frame (x radial, y along-track,
-        z normal): the frame in which 001 reports its position errors (FLAG P001-4, whose X is
+        z normal): the frame in which 001 reports its position errors (flag P001-4 (docs/papers.md#p001-4), whose X is
         this frame's y).
     range_m : ndarray, shape (T,)
         Chaser–target distance (m).

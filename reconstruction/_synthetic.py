@@ -164,7 +164,7 @@ def accuracy_study(*, n_views: int, n_trials: int, n_points: int = 200, distance
     crlb = attitude_increment_crlb(X0, K, T, pixel_sigma_px=sigma_px, R_delta=dR)
     crlb_rms = float(np.degrees(np.sqrt(np.mean(crlb.rms_angle_rad**2))))
 
-    # --- the paper's scalar-weighted fit (003 eq 12–13 with the weights of flag P003-4)
+    # --- the paper's scalar-weighted fit (003 eq 12–13 with the weights of flag P003-4 (docs/papers.md#p003-4))
     w = 1.0 / (0.5 * (tri0.rms_reprojection_px + tri1.rms_reprojection_px) + 0.1)
     sc = fit_rigid(tri0.X_W, tri1.X_W, np.where(np.isfinite(w), w, 0.0))
     sc_rms, _ = err_rms(sc.R)

@@ -40,7 +40,7 @@ class RigidFit:
 
 
 def weighted_svd_pose(q_C: ArrayLike, p_S: ArrayLike, weights: ArrayLike | None = None) -> RigidFit:
-    """Weighted SVD pose, 000 eqs (27)–(38) with flag P000-10 (Kabsch / Umeyama).
+    """Weighted SVD pose, 000 eqs (27)–(38) with flag P000-10 (docs/papers.md#p000-10) (Kabsch / Umeyama).
 
     ``q̄ = Σ w q / Σ w``, ``p̄ = Σ w p / Σ w`` (eq 30); ``B = Σ w (p − p̄)(q − q̄)ᵀ = U D Vᵀ``
     (eqs 33–34, centred); ``R = U diag(1, 1, det U det V) Vᵀ`` (eq 37); ``r = p̄ − R q̄`` (eq 38).

@@ -1,4 +1,4 @@
-"""Euler sequences 3-2-1 and 3-1-2 (004 eq 9–11 corrected, flags P004-2/3)."""
+"""Euler sequences 3-2-1 and 3-1-2 (004 eq 9–11 corrected, flags P004-2 (docs/papers.md#p004-2)/3)."""
 
 import numpy as np
 import pytest

@@ -90,7 +90,7 @@ def test_focal_plane_projection_is_opencv_projectpoints_inverted():
 @settings(max_examples=200, deadline=None)
 @given(unit_quats(), st.sampled_from([None, 0, 1, 2, 3]))
 def test_gibbs_pose_round_trips_the_hamilton_quaternion_in_every_set(q, gibbs_set):
-    """GibbsPose(q_CT) in any non-singular set gives back q_CT (up to sign) and R_CT = R(q_CT) (P001-3)."""
+    """GibbsPose(q_CT) in any non-singular set gives back q_CT (up to sign) and R_CT = R(q_CT) (P001-3 (docs/papers.md#p001-3))."""
     if gibbs_set is not None:
         with np.errstate(over="ignore"):
             g = gibbs_set_from_quat(quat_conjugate(q), gibbs_set)
@@ -132,7 +132,7 @@ def test_composition_landing_exactly_on_180_degrees_switches_to_a_finite_set():
 
 
 def test_projection_jacobian_matches_central_differences_of_the_corrected_model():
-    """A_j of eq (25) with J_c of FLAG P001-1 equals ∂x/∂[δg, Δt] under the eq (10) error composition."""
+    """A_j of eq (25) with J_c of flag P001-1 (docs/papers.md#p001-1) equals ∂x/∂[δg, Δt] under the eq (10) error composition."""
     rng = np.random.default_rng(2)
     for gibbs_set in (0, 1, 2, 3):
         q = quat_from_rotvec(rng.standard_normal(3))

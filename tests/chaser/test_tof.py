@@ -44,7 +44,7 @@ def _success(labels, truth) -> np.ndarray:
     return np.all(labels == truth, axis=-1)
 
 
-# ---------------------------------------------------------------- LoG (flags P000-2, P000-3)
+# ---------------------------------------------------------------- LoG (flags P000-2, P000-3 in docs/papers.md)
 
 def test_log_kernel_is_zero_mean_and_a_dark_disk_gives_the_largest_positive_response():
     k = log_kernel(2.5)
@@ -61,7 +61,7 @@ def test_log_kernel_is_zero_mean_and_a_dark_disk_gives_the_largest_positive_resp
     assert abs(J[0, 0]) < 1e-9                              # flat background: zero response (P000-2)
 
 
-# ---------------------------------------------------------------- SVD pose (eqs 27-38, P000-10)
+# ---------------------------------------------------------------- SVD pose (eqs 27-38, P000-10 (docs/papers.md#p000-10))
 
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
@@ -102,7 +102,7 @@ def test_pitch_yaw_roll_are_the_321_angles_yaw_about_the_boresight():
     np.testing.assert_allclose(Ry @ [1, 0, 0], [np.cos(np.radians(30)), np.sin(np.radians(30)), 0], atol=1e-12)
 
 
-# ---------------------------------------------------------------- matching (000 §3, P000-6..9)
+# ---------------------------------------------------------------- matching (000 §3, flags P000-6 to P000-9 in docs/papers.md)
 
 def test_mrf_matcher_labels_all_correct_with_one_marker_missing_200_trials():
     t = random_matching_trials(PLATE, 200, n_missing=1, rng=11)
@@ -150,7 +150,7 @@ def test_sinkhorn_variant_and_hungarian_baseline_solve_the_clean_and_missing_cas
 def test_mrf_assignment_rows_are_distributions_over_labels_and_converge_to_0_or_1():
     t = random_matching_trials(PLATE, 20, n_missing=1, n_spurious=1, rng=18)
     A = match_markers_mrf(MODEL, t.points_S).assignment
-    np.testing.assert_allclose(A.sum(-1), 1.0, atol=1e-12)                # P000-7 row softmax
+    np.testing.assert_allclose(A.sum(-1), 1.0, atol=1e-12)                # P000-7 (docs/papers.md#p000-7) row softmax
     assert np.all(A.max(-1) > 0.99)
 
 

@@ -23,7 +23,7 @@ def test_switching_never_fails_over_6000_s_and_non_switching_fails_at_the_180_de
     assert calls[-1] == (1201, 1201)
     assert abs(summary["crossing_time_s"] - 2228.61) < 0.02  # flag P001-5: the crossing at 2228.61 s
     assert summary["switching_failures"] == 0
-    assert summary["non_switching_first_failure_s"] in (2225.0, 2230.0)  # FLAG P001-5
+    assert summary["non_switching_first_failure_s"] in (2225.0, 2230.0)  # flag P001-5
     ns = ds.sel(solver="non_switching")
     t = ds["time_s"].values
     before = t < summary["non_switching_first_failure_s"]

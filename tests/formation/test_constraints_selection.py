@@ -13,7 +13,7 @@ def test_minimum_distance_forms_of_eq1_and_flag_P003_1():
     c_sin = ObservationConstraints(fov_rad=np.deg2rad(20), target_radius_m=5.0, d_min_form="sin")
     assert c_tan.d_min_m == pytest.approx(5.0 / np.tan(np.deg2rad(10)), rel=1e-12)  # 28.36 m
     assert c_sin.d_min_m == pytest.approx(5.0 / np.sin(np.deg2rad(10)), rel=1e-12)  # 28.79 m
-    assert (c_sin.d_min_m - c_tan.d_min_m) / c_tan.d_min_m < 0.02  # flag P003-1: < 2 % for FoV <= 20°
+    assert (c_sin.d_min_m - c_tan.d_min_m) / c_tan.d_min_m < 0.02  # flag P003-1 (docs/papers.md#p003-1): < 2 % for FoV <= 20°
 
 
 def test_margins_of_each_constraint_against_hand_computed_values():

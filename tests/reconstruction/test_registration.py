@@ -52,7 +52,7 @@ def test_exact_motion_is_recovered_for_any_rotation_scale_and_offset(seed, n, sc
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 40), noise=st.floats(0.0, 2.0))
 def test_weighted_fit_equals_the_svd_solution_of_000_eq_37(seed, n, noise):
-    """Horn's quaternion route gives U diag(1, 1, det UVᵀ) Vᵀ (flag P000-10), reflections too."""
+    """Horn's quaternion route gives U diag(1, 1, det UVᵀ) Vᵀ (flag P000-10 (docs/papers.md#p000-10)), reflections too."""
     rng = np.random.default_rng(seed)
     P = rng.standard_normal((n, 3))
     Q = rng.standard_normal((n, 3)) * noise + P @ np.diag([1.0, 1.0, rng.choice([-1.0, 1.0])])

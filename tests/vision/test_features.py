@@ -1,4 +1,4 @@
-"""Detection, epipolar geometry (003 eq 2-3, flag P003-2), matching, tracks, and issue 5's figures."""
+"""Detection, epipolar geometry (003 eq 2-3, flag P003-2 (docs/papers.md#p003-2)), matching, tracks, and issue 5's figures."""
 
 import numpy as np
 import pytest
