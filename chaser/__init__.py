@@ -2,15 +2,9 @@
 
 from __future__ import annotations
 
-import importlib
-from types import ModuleType
+import lazy_loader as lazy
 
 #: Sub-packages, imported on first use (``chaser.tof`` needs OpenCV, ``chaser.cylindrical`` filterpy).
 __all__ = ["cylindrical", "rodrigues_pose", "tof"]
 
-
-def __getattr__(name: str) -> ModuleType:
-    """Import the sub-package ``name`` on first access."""
-    if name in __all__:
-        return importlib.import_module(f"chaser.{name}")
-    raise AttributeError(f"module 'chaser' has no attribute {name!r}")
+__getattr__, __dir__, _ = lazy.attach(__name__, submodules=__all__)

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+import lazy_loader as lazy
 
 if TYPE_CHECKING:
     from closed_loop.estimators import ESTIMATORS, initial_estimate
@@ -23,24 +24,6 @@ if TYPE_CHECKING:
     )
     from closed_loop.registry import Registry, UnknownPartError
     from closed_loop.scenario import TumblingTarget, tumbling_target
-
-# Public name -> submodule, imported on first use (the planner's reconfiguration loads CasADi, the
-# registrars Numba; ``import closed_loop`` pays for neither).
-_PUBLIC = {
-    "ClosedLoop": "loop", "ClosedLoopResult": "loop", "Snapshot": "loop",
-    "Observer": "observers", "RenderedObserver": "observers", "GeometricObserver": "observers",
-    "OBSERVERS": "observers",
-    "Frame": "frames", "reconstruct": "frames", "reconstruct_many": "frames",
-    "Registrar": "registrars", "KabschRegistrar": "registrars", "RobustKabschRegistrar": "registrars",
-    "MLRegistrar": "registrars", "MatchedClouds": "registrars", "RegistrationIncrement": "registrars",
-    "REGISTRARS": "registrars", "residual_rotation_covariance": "registrars",
-    "ESTIMATORS": "estimators", "initial_estimate": "estimators",
-    "ObserverPlan": "planning", "Reconfiguration": "planning", "plan_observers": "planning",
-    "select_active": "planning",
-    "Registry": "registry", "UnknownPartError": "registry",
-    "TumblingTarget": "scenario", "tumbling_target": "scenario",
-}
-_SUBMODULES = ("estimators", "frames", "loop", "observers", "planning", "registrars", "registry", "scenario")
 
 __all__ = [
     "ClosedLoop",
@@ -73,17 +56,17 @@ __all__ = [
     "tumbling_target",
 ]
 
-
-def __getattr__(name: str) -> Any:
-    if name in _PUBLIC:
-        value = getattr(importlib.import_module(f"closed_loop.{_PUBLIC[name]}"), name)
-    elif name in _SUBMODULES:
-        value = importlib.import_module(f"closed_loop.{name}")
-    else:
-        raise AttributeError(f"module 'closed_loop' has no attribute {name!r}")
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_PUBLIC) | set(_SUBMODULES))
+# Submodules and public names are imported on first use (the planner's reconfiguration loads CasADi,
+# the registrars Numba; ``import closed_loop`` pays for neither).
+_SUBMODULES = ("estimators", "frames", "loop", "observers", "planning", "registrars", "registry", "scenario")
+__getattr__, __dir__, _ = lazy.attach(__name__, submodules=_SUBMODULES, submod_attrs={
+    "loop": ["ClosedLoop", "ClosedLoopResult", "Snapshot"],
+    "observers": ["Observer", "RenderedObserver", "GeometricObserver", "OBSERVERS"],
+    "frames": ["Frame", "reconstruct", "reconstruct_many"],
+    "registrars": ["Registrar", "KabschRegistrar", "RobustKabschRegistrar", "MLRegistrar", "MatchedClouds",
+                   "RegistrationIncrement", "REGISTRARS", "residual_rotation_covariance"],
+    "estimators": ["ESTIMATORS", "initial_estimate"],
+    "planning": ["ObserverPlan", "Reconfiguration", "plan_observers", "select_active"],
+    "registry": ["Registry", "UnknownPartError"],
+    "scenario": ["TumblingTarget", "tumbling_target"],
+})

@@ -23,5 +23,5 @@ def test_every_public_name_resolves_lazily_to_its_submodule():
 
 
 def test_unknown_attribute_is_an_attribute_error():
-    with pytest.raises(AttributeError, match="no attribute 'Nothing'"):
+    with pytest.raises(AttributeError, match="closed_loop attribute Nothing"):
         closed_loop.Nothing  # noqa: B018

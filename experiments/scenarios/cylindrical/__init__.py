@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from experiments.scenarios import lazy_getattr
+import lazy_loader as lazy
+
 from experiments.scenarios.cylindrical.config import (
     PAPER_MAX_ERR_DEG,
     TABLE1_MM,
@@ -20,4 +21,4 @@ if TYPE_CHECKING:
 __all__ = ["Config", "run", "plot", "TABLE1_MM", "TABLE2_DEG", "TABLE2_ERR_DEG", "PAPER_MAX_ERR_DEG"]
 
 # run and plot (and the science behind them) load on first use
-__getattr__ = lazy_getattr(__name__, {"run": "experiment", "plot": "figures"})
+__getattr__, _, _ = lazy.attach(__name__, submod_attrs={"experiment": ["run"], "figures": ["plot"]})

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from experiments.scenarios import lazy_getattr
+import lazy_loader as lazy
+
 from experiments.scenarios.formation.config import Config
 
 if TYPE_CHECKING:
@@ -20,4 +21,4 @@ if TYPE_CHECKING:
 __all__ = ["Config", "run", "plot", "sweep_cell", "plot_sweep", "SWEEP_CELLS", "STUDIES"]
 
 # the kind protocol (and the science behind it) loads on first use
-__getattr__ = lazy_getattr(__name__, {name: "kind" for name in __all__ if name != "Config"})
+__getattr__, _, _ = lazy.attach(__name__, submod_attrs={"kind": [name for name in __all__ if name != "Config"]})

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from experiments.scenarios import lazy_getattr
+import lazy_loader as lazy
+
 from experiments.scenarios.rodrigues.config import Config
 from experiments.scenarios.rodrigues.truth import (
     R_HO,
@@ -22,4 +23,4 @@ __all__ = ["Config", "run", "plot", "SOLVERS", "R_HO", "truth_001", "crossing_ti
            "visible_vertices"]
 
 # run and plot (OpenCV and pycolmap behind them) load on first use
-__getattr__ = lazy_getattr(__name__, {"run": "experiment", "SOLVERS": "experiment", "plot": "figures"})
+__getattr__, _, _ = lazy.attach(__name__, submod_attrs={"experiment": ["run", "SOLVERS"], "figures": ["plot"]})

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from experiments.scenarios import lazy_getattr
+import lazy_loader as lazy
+
 from experiments.scenarios.tof.config import MATCHERS, MATCHING_CASES, Config
 
 if TYPE_CHECKING:
@@ -14,5 +15,6 @@ if TYPE_CHECKING:
 __all__ = ["Config", "run", "plot", "MATCHING_CASES", "MATCHERS", "TABLE1_000", "table1_stats"]
 
 # run and plot (and the science behind them) load on first use
-__getattr__ = lazy_getattr(__name__, {"run": "experiment", "TABLE1_000": "experiment", "table1_stats": "experiment",
-                                     "plot": "figures"})
+__getattr__, _, _ = lazy.attach(
+    __name__, submod_attrs={"experiment": ["run", "TABLE1_000", "table1_stats"], "figures": ["plot"]}
+)
