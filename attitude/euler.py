@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from attitude.matrix import rot_x, rot_y, rot_z
+from attitude.matrix import check_rotation_matrix, rot_x, rot_y, rot_z
 
 __all__ = ["SEQUENCES", "matrix_from_euler", "euler_from_matrix"]
 
@@ -38,6 +38,8 @@ def matrix_from_euler(angles_rad: ArrayLike, seq: str) -> np.ndarray:
     a = np.asarray(angles_rad, dtype=float)
     if a.ndim == 0 or a.shape[-1] != 3:
         raise ValueError(f"angles_rad: expected shape (..., 3), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError("angles_rad: contains non-finite values")
     if seq == "321":
         return rot_z(a[..., 0]) @ rot_y(a[..., 1]) @ rot_x(a[..., 2])
     return rot_z(a[..., 0]) @ rot_x(a[..., 1]) @ rot_y(a[..., 2])
@@ -50,15 +52,18 @@ def euler_from_matrix(R: ArrayLike, seq: str, *, lock_tol: float = 1e-6) -> tupl
     ``|cos(middle)| < lock_tol`` only the sum/difference of the outer angles is defined: the flag is
     set, the last angle is set to 0 and the first absorbs the rotation.
 
+    ``R`` must hold proper rotation matrices (``max |R Rᵀ − I| <= 1e-6``, ``det R > 0``,
+    :func:`attitude.matrix.check_rotation_matrix`): anything else raises ``ValueError``, since
+    the angles of a non-rotation are meaningless.  A matrix whose nine entries are all NaN (a
+    failed pose inside a batch) gives NaN angles and no lock flag.
+
     Returns
     -------
     angles : (..., 3) ndarray
     gimbal_lock : (...,) bool ndarray
     """
     _check_seq(seq)
-    R = np.asarray(R, dtype=float)
-    if R.ndim < 2 or R.shape[-2:] != (3, 3):
-        raise ValueError(f"R: expected shape (..., 3, 3), got {R.shape}")
+    R = check_rotation_matrix(R, name="R", allow_nan=True)
     if seq == "321":
         s_mid = np.clip(-R[..., 2, 0], -1.0, 1.0)
         mid = np.arcsin(s_mid)

@@ -56,6 +56,14 @@ GIBBS_SET_MATRICES = np.array(
 )
 
 
+def _check_nonzero_quat(q: ArrayLike) -> np.ndarray:
+    """Finite ``(..., 4)`` quaternions of non-zero norm (any norm otherwise: Gibbs sets are ratios)."""
+    q = check_quat(q, name="q", unit=False)
+    if np.any(np.linalg.norm(q, axis=-1) == 0):
+        raise ValueError("q: the zero quaternion is no rotation")
+    return q
+
+
 # ---------------------------------------------------------------- Hamilton-facing Gibbs vector
 def gibbs_from_quat(q: ArrayLike) -> np.ndarray:
     """Gibbs vector ``g = q_v / q_w = n tan(θ/2)`` of ``q_AB`` (001 eq 1–3), ``(..., 4) → (..., 3)``.
@@ -63,7 +71,7 @@ def gibbs_from_quat(q: ArrayLike) -> np.ndarray:
     Raises ``ValueError`` for a 180° rotation (``q_w = 0``), where ``g`` does not exist; use
     :func:`best_gibbs_set` for a representation that never is singular.
     """
-    q = check_quat(q, name="q", unit=False)
+    q = _check_nonzero_quat(q)
     w = q[..., :1]
     if np.any(w == 0):
         raise ValueError("q: rotation of 180 degrees (w = 0) has no Gibbs vector; use best_gibbs_set")
@@ -183,7 +191,7 @@ def best_gibbs_set(q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
 
     Returns ``(g, i)``; every ``|g_j| <= 1`` (Shuster's MSR criterion, 001 eq (5)).
     """
-    q_s = shuster_from_quat(check_quat(q, name="q", unit=False))
+    q_s = shuster_from_quat(_check_nonzero_quat(q))
     k = np.argmax(np.abs(q_s), axis=-1)  # 0..2 → q1..q3, 3 → q4
     i = np.where(k == 3, 0, k + 1)
     return gibbs_set_from_shuster(q_s, i), i

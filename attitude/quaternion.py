@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from attitude import batch
+from attitude.matrix import check_rotation_matrix
 
 __all__ = [
     "check_quat",
@@ -123,19 +124,27 @@ def matrix_from_quat(q: ArrayLike) -> np.ndarray:
     return batch.matrices_from_quaternions(quat_normalize(q))
 
 
-def quat_from_matrix(R: ArrayLike) -> np.ndarray:
+def quat_from_matrix(R: ArrayLike, *, atol: float = 1e-6) -> np.ndarray:
     """Unit quaternion of a rotation matrix, robust at any angle including 180° (Shepperd's method).
 
     For each matrix the largest of ``4w², 4x², 4y², 4z²`` is used as the pivot, so no division by
     a small number occurs.  The result has ``w >= 0``.  ``(..., 3, 3) → (..., 4)``.
-    Non-orthonormal input is not projected; use :func:`attitude.matrix.orthonormalize` first.
+
+    Parameters
+    ----------
+    R : array_like (..., 3, 3)
+        Proper rotation matrices: ``max |R Rᵀ − I| <= atol`` and ``det R > 0``
+        (:func:`attitude.matrix.check_rotation_matrix`).  Anything else (the zero matrix, ``2 I``,
+        a reflection, a matrix far from orthonormal, a non-finite entry) raises ``ValueError``;
+        project a nearly orthonormal matrix with :func:`attitude.matrix.orthonormalize` first.
+    atol : float, keyword-only
+        Orthogonality tolerance.
+
+    Returns
+    -------
+    ndarray (..., 4)
     """
-    R = _as_float(R)
-    if R.shape[-2:] != (3, 3):
-        raise ValueError(f"R: expected shape (..., 3, 3), got {R.shape}")
-    if not np.all(np.isfinite(R)):
-        raise ValueError("R: contains non-finite values")
-    return batch.quaternions_from_matrices(R)
+    return batch.quaternions_from_matrices(check_rotation_matrix(R, name="R", atol=atol))
 
 
 def quat_from_axis_angle(axis: ArrayLike, angle_rad: ArrayLike) -> np.ndarray:
@@ -144,7 +153,10 @@ def quat_from_axis_angle(axis: ArrayLike, angle_rad: ArrayLike) -> np.ndarray:
     n = np.linalg.norm(axis, axis=-1, keepdims=True)
     if np.any(n == 0):
         raise ValueError("axis: zero-length rotation axis")
-    half = 0.5 * _as_float(angle_rad)[..., None]
+    angle = _as_float(angle_rad)
+    if not np.all(np.isfinite(angle)):
+        raise ValueError(f"angle_rad: contains non-finite values, got {float(angle[~np.isfinite(angle)].ravel()[0])!r}")
+    half = 0.5 * angle[..., None]
     u = axis / n
     shape = np.broadcast_shapes(half.shape[:-1], u.shape[:-1])
     half = np.broadcast_to(half, shape + (1,))
