@@ -9,7 +9,19 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from experiments.config import ConfigTable, ScenarioConfig
+from experiments.config import (
+    Angle_deg,
+    ConfigTable,
+    Duration_s,
+    FiniteFloat,
+    Flag,
+    Integer,
+    Length_m,
+    Length_mm,
+    ScenarioConfig,
+    Seed,
+    Speed_mm_s,
+)
 
 __all__ = ["Config", "CameraConfig", "RigConfig", "CalibrationConfig", "PointsConfig", "AttitudeConfig",
            "DynamicConfig", "TABLE1_MM", "TABLE1_ERR_MM", "TABLE2_DEG", "TABLE2_ERR_DEG", "PAPER_MAX_ERR_DEG",
@@ -49,35 +61,36 @@ POSE_167_DEG = [-87.4626, -77.8150, 87.2480]
 class CameraConfig(ConfigTable):
     """Linear-CCD hardware (not given in 004: assumed values, see docs/cylindrical.md)."""
 
-    n_pixels: int = Field(8000, ge=512, le=100_000)
-    pixel_pitch_um: float = Field(7.0, gt=0.0, le=100.0)
-    focal_length_mm: float = Field(100.0, gt=1.0, le=2000.0)
-    spot_sigma_px: float = Field(2.5, gt=0.3, le=50.0)
-    peak_dn: float = Field(3000.0, gt=0.0, le=60000.0)
-    read_noise_dn: float = Field(4.0, ge=0.0, le=1000.0)
-    electrons_per_dn: float = Field(4.0, gt=0.0, le=1e6)
+    n_pixels: Integer = Field(8000, ge=512, le=100_000)
+    pixel_pitch_um: FiniteFloat = Field(7.0, gt=0.0, le=100.0)
+    focal_length_mm: FiniteFloat = Field(100.0, gt=1.0, le=2000.0)
+    spot_sigma_px: FiniteFloat = Field(2.5, gt=0.3, le=50.0)
+    peak_dn: FiniteFloat = Field(3000.0, gt=0.0, le=60000.0)
+    read_noise_dn: FiniteFloat = Field(4.0, ge=0.0, le=1000.0)
+    electrons_per_dn: FiniteFloat = Field(4.0, gt=0.0, le=1e6)
     spot_method: Literal["threshold_centroid", "gaussian3"] = "threshold_centroid"
-    distortion_scale: float = Field(1.0, ge=0.0, le=10.0, description="multiplies the default lens distortion")
+    distortion_scale: FiniteFloat = Field(1.0, ge=0.0, le=10.0, description="multiplies the default lens distortion")
 
 
 class RigConfig(ConfigTable):
-    baseline_m: float = Field(2.0, gt=0.0, le=50.0)
-    convergence_deg: float = Field(30.0, gt=0.0, lt=120.0)
-    volume_centre_depth_m: float = Field(3.5, gt=0.0, le=100.0, description="cube centre, in front of the baseline")
-    volume_edge_m: float = Field(1.0, gt=0.0, le=20.0)
+    baseline_m: Length_m = Field(2.0, gt=0.0, le=50.0)
+    convergence_deg: Angle_deg = Field(30.0, gt=0.0, lt=120.0)
+    volume_centre_depth_m: Length_m = Field(3.5, gt=0.0, le=100.0, description="cube centre, in front of the baseline")
+    volume_edge_m: Length_m = Field(1.0, gt=0.0, le=20.0)
 
 
 class CalibrationConfig(ConfigTable):
-    rail_distance_m: float = Field(3.0, gt=0.1, le=100.0)
-    alpha_max_deg: float = Field(14.0, gt=0.0, lt=60.0)
-    alpha_step_deg: float = Field(0.75, gt=0.0, le=10.0)
-    beta_max_deg: float = Field(14.0, gt=0.0, lt=60.0)
-    rail_step_mm: float = Field(40.0, gt=0.0, le=1000.0)
-    tracker_distance_m: float = Field(2.0, ge=0.0, le=100.0)
-    turntable_sigma_urad: float = Field(1.0, ge=0.0, le=1000.0)
-    axis_offset_mm: list[float] = Field([0.0, 0.0, 0.3], description="turntable axis relative to the optical centre")
-    n_scans: int = Field(20, ge=1, le=100_000)
-    n_control_points: int = Field(30, ge=6, le=10_000)
+    rail_distance_m: Length_m = Field(3.0, gt=0.1, le=100.0)
+    alpha_max_deg: Angle_deg = Field(14.0, gt=0.0, lt=60.0)
+    alpha_step_deg: Angle_deg = Field(0.75, gt=0.0, le=10.0)
+    beta_max_deg: Angle_deg = Field(14.0, gt=0.0, lt=60.0)
+    rail_step_mm: Length_mm = Field(40.0, gt=0.0, le=1000.0)
+    tracker_distance_m: Length_m = Field(2.0, ge=0.0, le=100.0)
+    turntable_sigma_urad: FiniteFloat = Field(1.0, ge=0.0, le=1000.0)
+    axis_offset_mm: list[Length_mm] = Field([0.0, 0.0, 0.3], description="turntable axis relative to the optical "
+                                            "centre, each component within ±1e11 mm")
+    n_scans: Integer = Field(20, ge=1, le=100_000)
+    n_control_points: Integer = Field(30, ge=6, le=10_000)
     extrinsic_method: Literal["rotvec", "penalty"] = "rotvec"
 
     @field_validator("axis_offset_mm")
@@ -92,16 +105,19 @@ class CalibrationConfig(ConfigTable):
         n = (2 * self.alpha_max_deg / self.alpha_step_deg + 1) * (
             2 * self.rail_distance_m * np.tan(np.deg2rad(self.beta_max_deg)) / (self.rail_step_mm / 1e3) + 1)
         if n < 20:
-            raise ValueError(f"about {n:.0f} calibration samples; the RBF needs at least 20")
+            raise ValueError(f"alpha_step_deg: about {n:.0f} calibration samples (from alpha_max_deg, alpha_step_deg, "
+                             "beta_max_deg, rail_distance_m, rail_step_mm); the RBF needs at least 20")
         if n > 6000:
-            raise ValueError(f"about {n:.0f} calibration samples; the dense RBF solve is limited to 6000")
+            raise ValueError(f"alpha_step_deg: about {n:.0f} calibration samples (from alpha_max_deg, alpha_step_deg, "
+                             "beta_max_deg, rail_distance_m, rail_step_mm); the dense RBF solve is limited to 6000")
         return self
 
 
 class PointsConfig(ConfigTable):
-    test_points_mm: list[list[float]] = Field(default_factory=lambda: [list(p) for p in TABLE1_MM])
-    n_random: int = Field(500, ge=0, le=100_000)
-    n_scans: int = Field(20, ge=1, le=100_000)
+    test_points_mm: list[list[Length_mm]] = Field(default_factory=lambda: [list(p) for p in TABLE1_MM],
+                                                  max_length=100_000)
+    n_random: Integer = Field(500, ge=0, le=100_000)
+    n_scans: Integer = Field(20, ge=1, le=100_000)
 
     @field_validator("test_points_mm")
     @classmethod
@@ -112,11 +128,12 @@ class PointsConfig(ConfigTable):
 
 
 class AttitudeConfig(ConfigTable):
-    poses_deg: list[list[float]] = Field(default_factory=lambda: [list(p) for p in TABLE2_DEG] + [POSE_167_DEG])
-    arm_mm: float = Field(500.0, gt=10.0, le=2000.0, description="|ab| = |bc|")
-    abc_angle_deg: float = Field(80.0, gt=5.0, lt=175.0, description="angle between the vectors ab and bc")
-    n_trials: int = Field(20, ge=1, le=10_000)
-    n_scans: int = Field(20, ge=1, le=100_000)
+    poses_deg: list[list[Angle_deg]] = Field(default_factory=lambda: [list(p) for p in TABLE2_DEG] + [POSE_167_DEG],
+                                             max_length=10_000)
+    arm_mm: Length_mm = Field(500.0, gt=10.0, le=2000.0, description="|ab| = |bc|")
+    abc_angle_deg: Angle_deg = Field(80.0, gt=5.0, lt=175.0, description="angle between the vectors ab and bc")
+    n_trials: Integer = Field(20, ge=1, le=10_000)
+    n_scans: Integer = Field(20, ge=1, le=100_000)
 
     @field_validator("poses_deg")
     @classmethod
@@ -127,16 +144,17 @@ class AttitudeConfig(ConfigTable):
 
 
 class DynamicConfig(ConfigTable):
-    enabled: bool = True
-    duration_s: float = Field(6.0, gt=0.0, le=3600.0)
-    frame_rate_hz: float = Field(40.0, gt=0.0, le=10_000.0)
-    spin_rate_deg_s: float = Field(60.0, ge=0.0, le=3600.0)
-    spin_axis: list[float] = Field([0.3, 0.5, 1.0])
-    drift_mm_s: list[float] = Field([20.0, -10.0, 10.0])
-    arm_mm: float = Field(400.0, gt=10.0, le=2000.0)
-    accel_psd_m2_s3: float = Field(1.0, gt=0.0, le=1e6)
-    overlap_px: float = Field(15.0, ge=0.0, le=1000.0)
-    angle_sigma_urad: float = Field(3.0, gt=0.0, le=1e4)
+    enabled: Flag = True
+    duration_s: Duration_s = Field(6.0, gt=0.0, le=3600.0)
+    frame_rate_hz: FiniteFloat = Field(40.0, gt=0.0, le=10_000.0)
+    spin_rate_deg_s: FiniteFloat = Field(60.0, ge=0.0, le=3600.0, description="spin rate, at most 3600 deg/s")
+    spin_axis: list[FiniteFloat] = Field([0.3, 0.5, 1.0])
+    drift_mm_s: list[Speed_mm_s] = Field([20.0, -10.0, 10.0], description="drift velocity, each component within "
+                                         "±1e7 mm/s")
+    arm_mm: Length_mm = Field(400.0, gt=10.0, le=2000.0)
+    accel_psd_m2_s3: FiniteFloat = Field(1.0, gt=0.0, le=1e6)
+    overlap_px: FiniteFloat = Field(15.0, ge=0.0, le=1000.0)
+    angle_sigma_urad: FiniteFloat = Field(3.0, gt=0.0, le=1e4)
 
     @field_validator("spin_axis", "drift_mm_s")
     @classmethod
@@ -156,9 +174,9 @@ class DynamicConfig(ConfigTable):
     def _frames(self):
         n = self.duration_s * self.frame_rate_hz
         if n < 10:
-            raise ValueError(f"duration_s × frame_rate_hz = {n:.0f} frames; need at least 10")
+            raise ValueError(f"duration_s: duration_s × frame_rate_hz = {n:.0f} frames; need at least 10")
         if n > 200_000:
-            raise ValueError(f"duration_s × frame_rate_hz = {n:.0f} frames; at most 200000")
+            raise ValueError(f"duration_s: duration_s × frame_rate_hz = {n:.0f} frames; at most 200000")
         return self
 
 
@@ -166,7 +184,7 @@ class Config(ScenarioConfig):
     """``cylindrical_004`` config: 004 §4 rig, calibration, Table 1/2 analogues and the dynamic test."""
 
     kind: Literal["cylindrical_004"]
-    seed: int = Field(0, ge=0)
+    seed: Seed = 0
     camera: CameraConfig = CameraConfig()
     rig: RigConfig = RigConfig()
     calibration: CalibrationConfig = CalibrationConfig()

@@ -15,7 +15,19 @@ from attitude.quaternion import (
     quat_from_rotvec,
     quat_multiply,
 )
-from experiments.config import ConfigTable, ScenarioConfig
+from experiments.config import (
+    Angle_deg,
+    ConfigTable,
+    Duration_s,
+    FiniteFloat,
+    Flag,
+    Integer,
+    Length_km,
+    Length_m,
+    Rate_deg_s,
+    ScenarioConfig,
+    Seed,
+)
 from orbits.scenario_001 import Table1Orbit
 from orbits.two_body import R_EARTH_M
 
@@ -26,23 +38,23 @@ __all__ = ["Config", "SpacecraftConfig", "CameraConfig", "TargetConfig", "Simula
 class SpacecraftConfig(ConfigTable):
     """One column of 001 Table 1: orbit and attitude (angles in the 3-2-1 reading, rates about body axes)."""
 
-    a_km: float = Field(6721.2, gt=R_EARTH_M / 1e3, description="semi-major axis")
-    e: float = Field(0.0, ge=0.0, lt=1.0)
-    i_deg: float = Field(42.225, ge=0.0, le=180.0)
-    raan_deg: float = Field(0.0, ge=-360.0, le=360.0)
-    argp_deg: float = Field(0.0, ge=-360.0, le=360.0)
-    t_node_s: float = Field(0.0, description="time of ascending-node passage")
-    roll_deg: float = Field(0.0, ge=-180.0, le=180.0)
-    pitch_deg: float = Field(0.0, ge=-90.0, le=90.0)
-    yaw_deg: float = Field(0.0, ge=-180.0, le=180.0)
-    roll_rate_deg_s: float = Field(0.0, ge=-10.0, le=10.0)
-    pitch_rate_deg_s: float = Field(0.0, ge=-10.0, le=10.0)
-    yaw_rate_deg_s: float = Field(0.0, ge=-10.0, le=10.0)
+    a_km: Length_km = Field(6721.2, gt=R_EARTH_M / 1e3, description="semi-major axis, at most 1e5 km")
+    e: FiniteFloat = Field(0.0, ge=0.0, lt=1.0)
+    i_deg: Angle_deg = Field(42.225, ge=0.0, le=180.0)
+    raan_deg: Angle_deg = Field(0.0, ge=-360.0, le=360.0)
+    argp_deg: Angle_deg = Field(0.0, ge=-360.0, le=360.0)
+    t_node_s: Duration_s = Field(0.0, description="time of ascending-node passage, within ±1e7 s")
+    roll_deg: Angle_deg = Field(0.0, ge=-180.0, le=180.0)
+    pitch_deg: Angle_deg = Field(0.0, ge=-90.0, le=90.0)
+    yaw_deg: Angle_deg = Field(0.0, ge=-180.0, le=180.0)
+    roll_rate_deg_s: Rate_deg_s = Field(0.0, ge=-10.0, le=10.0)
+    pitch_rate_deg_s: Rate_deg_s = Field(0.0, ge=-10.0, le=10.0)
+    yaw_rate_deg_s: Rate_deg_s = Field(0.0, ge=-10.0, le=10.0)
 
     @model_validator(mode="after")
     def _perigee_above_earth(self):
         if self.a_km * (1.0 - self.e) * 1e3 <= R_EARTH_M:
-            raise ValueError(f"perigee radius a_km*(1-e) = {self.a_km * (1 - self.e):.1f} km is inside the Earth")
+            raise ValueError(f"a_km: perigee radius a_km*(1-e) = {self.a_km * (1 - self.e):.1f} km is inside the Earth")
         return self
 
     def orbit(self) -> Table1Orbit:
@@ -58,47 +70,47 @@ class SpacecraftConfig(ConfigTable):
 
 
 class CameraConfig(ConfigTable):
-    focal_length_mm: float = Field(200.0, gt=0.0, le=10_000.0)
-    pixel_size_um: float = Field(7.0, gt=0.0, le=1000.0)
-    width_px: int = Field(2048, ge=16, le=100_000)
-    height_px: int = Field(2048, ge=16, le=100_000)
-    noise_px: float = Field(1.0, ge=0.0, le=100.0, description="white noise, 1 sigma per image coordinate")
+    focal_length_mm: FiniteFloat = Field(200.0, gt=0.0, le=10_000.0)
+    pixel_size_um: FiniteFloat = Field(7.0, gt=0.0, le=1000.0)
+    width_px: Integer = Field(2048, ge=16, le=100_000)
+    height_px: Integer = Field(2048, ge=16, le=100_000)
+    noise_px: FiniteFloat = Field(1.0, ge=0.0, le=100.0, description="white noise, 1 sigma per image coordinate")
 
 
 class TargetConfig(ConfigTable):
-    cube_edge_m: float = Field(2.0, gt=0.0, le=100.0)
+    cube_edge_m: Length_m = Field(2.0, gt=0.0, le=100.0)
 
 
 class SimulationConfig(ConfigTable):
-    duration_s: float = Field(6000.0, gt=0.0, le=1e6)
-    step_s: float = Field(5.0, gt=0.0)
+    duration_s: Duration_s = Field(6000.0, gt=0.0, le=1e6)
+    step_s: Duration_s = Field(5.0, gt=0.0, description="time step, at most 1e7 s")
 
     @model_validator(mode="after")
     def _step_fits(self):
         if self.step_s > self.duration_s:
-            raise ValueError(f"step_s = {self.step_s} is longer than duration_s = {self.duration_s}")
+            raise ValueError(f"step_s: {self.step_s:g} s is longer than duration_s = {self.duration_s:g} s")
         return self
 
 
 class SolverConfig(ConfigTable):
-    eps_attitude: float = Field(1e-8, gt=0.0, lt=1.0, description="epsilon_1 on |dg|")
-    eps_translation_m: float = Field(1e-5, gt=0.0, lt=10.0, description="epsilon_2 on |dt|")
-    max_iterations: int = Field(50, ge=1, le=1000)
-    eta: float = Field(0.0, ge=0.0, le=1.0, description="switching hysteresis")
-    initial_attitude_error_deg: float = Field(1.0, ge=0.0, le=60.0)
-    initial_position_error_m: float = Field(1.0, ge=0.0, le=50.0)
+    eps_attitude: FiniteFloat = Field(1e-8, gt=0.0, lt=1.0, description="epsilon_1 on |dg|")
+    eps_translation_m: Length_m = Field(1e-5, gt=0.0, lt=10.0, description="epsilon_2 on |dt|")
+    max_iterations: Integer = Field(50, ge=1, le=1000)
+    eta: FiniteFloat = Field(0.0, ge=0.0, le=1.0, description="switching hysteresis")
+    initial_attitude_error_deg: Angle_deg = Field(1.0, ge=0.0, le=60.0)
+    initial_position_error_m: Length_m = Field(1.0, ge=0.0, le=50.0)
 
 
 class ComparisonConfig(ConfigTable):
-    opencv: bool = True
-    pycolmap: bool = True
+    opencv: Flag = True
+    pycolmap: Flag = True
 
 
 class Config(ScenarioConfig):
     """``rodrigues_001`` config: 001 Table 1 and the camera, target, solver and comparison options."""
 
     kind: Literal["rodrigues_001"]
-    seed: int = Field(1, ge=0)
+    seed: Seed = 1
     chaser: SpacecraftConfig = SpacecraftConfig(e=1e-7, i_deg=42.225005, t_node_s=0.013, roll_deg=0.1, pitch_deg=0.1,
                                                 yaw_deg=0.1, roll_rate_deg_s=1e-4, pitch_rate_deg_s=1e-4,
                                                 yaw_rate_deg_s=1e-4)

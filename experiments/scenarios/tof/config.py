@@ -7,7 +7,15 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from experiments.config import ConfigTable, ScenarioConfig
+from experiments.config import (
+    Angle_deg,
+    ConfigTable,
+    FiniteFloat,
+    Integer,
+    Length_m,
+    ScenarioConfig,
+    Seed,
+)
 
 __all__ = ["Config", "MATCHING_CASES", "MATCHERS", "CameraConfig", "TargetConfig", "StaticConfig", "SweepConfig",
            "MatchingConfig", "PipelineConfig"]
@@ -29,18 +37,18 @@ class CameraConfig(ConfigTable):
     """The SR4000 TOF camera: ambient light and supersampling of the renderer."""
 
     model: Literal["sr4000"] = "sr4000"
-    ambient_dn: float = Field(0.0, ge=0.0, le=1e6, description="ambient light per pixel (DN)")
-    supersample: int = Field(3, ge=1, le=6, description="sub-rays per pixel and axis")
+    ambient_dn: FiniteFloat = Field(0.0, ge=0.0, le=1e6, description="ambient light per pixel (DN)")
+    supersample: Integer = Field(3, ge=1, le=6, description="sub-rays per pixel and axis")
 
 
 class TargetConfig(ConfigTable):
     """Pose of the marker plate in the camera frame, and its mount."""
 
-    distance_m: float = Field(0.7, description="plate origin on the boresight at this z (m)")
-    attitude_deg: tuple[float, float, float] = Field((0.0, 0.0, 0.0), description="pitch, yaw, roll (3-2-1)")
-    lateral_offset_m: tuple[float, float] = (0.0, 0.0)
-    standoff_m: float = Field(0.05, ge=0.0, le=1.0)
-    body_reflectivity: float = Field(0.3, ge=0.0, le=1.0)
+    distance_m: Length_m = Field(0.7, description="plate origin on the boresight at this z (m)")
+    attitude_deg: tuple[Angle_deg, Angle_deg, Angle_deg] = Field((0.0, 0.0, 0.0), description="pitch, yaw, roll (3-2-1)")
+    lateral_offset_m: tuple[Length_m, Length_m] = (0.0, 0.0)
+    standoff_m: Length_m = Field(0.05, ge=0.0, le=1.0)
+    body_reflectivity: FiniteFloat = Field(0.3, ge=0.0, le=1.0)
 
     @field_validator("distance_m")
     @classmethod
@@ -62,15 +70,15 @@ class TargetConfig(ConfigTable):
 class StaticConfig(ConfigTable):
     """The static repeatability study (000 Table 1): frames of a held target."""
 
-    frames: int = Field(200, ge=2, le=100_000)
+    frames: Integer = Field(200, ge=2, le=100_000)
 
 
 class SweepConfig(ConfigTable):
     """The attitude sweep: one Euler angle offset at a time."""
 
     axes: list[Literal["pitch", "yaw", "roll"]] = ["pitch", "yaw", "roll"]
-    angles_deg: list[float] = [-60.0, -45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0, 60.0]
-    frames_per_angle: int = Field(5, ge=1, le=10_000)
+    angles_deg: list[Angle_deg] = Field([-60.0, -45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0, 60.0], max_length=1000)
+    frames_per_angle: Integer = Field(5, ge=1, le=10_000)
 
     @field_validator("angles_deg")
     @classmethod
@@ -83,8 +91,8 @@ class SweepConfig(ConfigTable):
 class MatchingConfig(ConfigTable):
     """The matching Monte Carlo: random matching problems per case and matcher."""
 
-    trials: int = Field(1000, ge=1, le=1_000_000)
-    noise_m: float = Field(0.002, ge=0.0, le=0.05, description="isotropic 3-D point noise (1 sigma)")
+    trials: Integer = Field(1000, ge=1, le=1_000_000)
+    noise_m: Length_m = Field(0.002, ge=0.0, le=0.05, description="isotropic 3-D point noise (1 sigma)")
     cases: list[Literal[tuple(MATCHING_CASES)]] = list(MATCHING_CASES)
     matchers: list[Literal[MATCHERS]] = ["mrf", "mrf-literal", "hungarian"]
 
@@ -93,8 +101,8 @@ class PipelineConfig(ConfigTable):
     """The pose pipeline: matcher, thresholds, range estimators, weighting."""
 
     matcher: Literal["mrf", "mrf-sinkhorn", "mrf-literal", "hungarian"] = "mrf"
-    alpha_m: float = Field(0.010, gt=0.0, le=0.2, description="distance-consistency threshold alpha")
-    gate_factor: float = Field(2.0, gt=0.0, le=20.0, description="verification gate in units of alpha")
+    alpha_m: Length_m = Field(0.010, gt=0.0, le=0.2, description="distance-consistency threshold alpha")
+    gate_factor: FiniteFloat = Field(2.0, gt=0.0, le=20.0, description="verification gate in units of alpha")
     range_estimators: list[Estimator] = ["plane", "mean"]
     weighting: Literal["inverse_variance", "uniform"] = "inverse_variance"
 
@@ -110,8 +118,8 @@ class Config(ScenarioConfig):
     """The whole ``tof_000`` config."""
 
     kind: Literal["tof_000"]
-    title: str = "000 TOF cooperative-marker pose"
-    seed: int = Field(0, ge=0)
+    title: str = Field("000 TOF cooperative-marker pose", max_length=200)
+    seed: Seed = 0
     camera: CameraConfig = CameraConfig()
     target: TargetConfig = TargetConfig()
     pipeline: PipelineConfig = PipelineConfig()
