@@ -86,6 +86,10 @@ def shorten(value: Any, limit: int = SHOWN_CHARS) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
+def _cut(text: str, limit: int = 2 * SHOWN_CHARS) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
 def one_line(message: str, limit: int = MAX_MESSAGE_CHARS) -> str:
     """``message`` on one line (runs of white space become one space), cut to ``limit`` characters."""
     text = " ".join(message[:4 * limit].split())
@@ -249,8 +253,8 @@ def format_validation_error(err: pydantic.ValidationError) -> str:
         loc.append(m.group(1))
         msg = m.group(2)
     key = ".".join(loc) or "config"
-    shown = ("" if first["type"] in ("missing", "extra_forbidden") or isinstance(value, Mapping)
-             else f" (got {shorten(value)})")
+    shown = "" if first["type"] in ("missing", "extra_forbidden") or isinstance(value, Mapping) else shorten(value)
+    shown = f" (got {shown})" if shown and shown not in msg else ""
     return one_line(f"{key}: {msg}{shown}")
 
 
@@ -274,7 +278,8 @@ def read_config_text(path: Path | str) -> str:
     if len(data) > MAX_FILE_BYTES:
         raise ConfigError(f"config: {shown} is larger than {MAX_FILE_BYTES} bytes")
     try:
-        return data.decode("utf-8")
+        # universal newlines, as Path.read_text gives them
+        return data.decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
     except UnicodeDecodeError as exc:
         raise ConfigError(f"config: {shown} is not UTF-8 text (byte {exc.object[exc.start]:#04x} at "
                           f"offset {exc.start})") from None
@@ -288,9 +293,9 @@ def _check_shape(value: Any, where: str = "") -> None:
     stack: list[tuple[Any, str, int]] = [(value, where, 0)]
     while stack:
         node, at, depth = stack.pop()
-        name = at or "config"
+        name = _cut(at or "config")
         if isinstance(node, Mapping | list | tuple) and depth >= MAX_DEPTH:
-            raise ConfigError(f"{shorten(name, 2 * SHOWN_CHARS)}: tables and arrays nested deeper than "
+            raise ConfigError(f"{name}: tables and arrays nested deeper than "
                               f"{MAX_DEPTH} levels")
         if isinstance(node, Mapping):
             for k, v in node.items():
@@ -301,10 +306,10 @@ def _check_shape(value: Any, where: str = "") -> None:
                 stack.append((v, f"{at}.{k}" if at else k, depth + 1))
         elif isinstance(node, list | tuple):
             if len(node) > MAX_LIST_ITEMS:
-                raise ConfigError(f"{shorten(name, 2 * SHOWN_CHARS)}: {len(node)} items, at most {MAX_LIST_ITEMS}")
+                raise ConfigError(f"{name}: {len(node)} items, at most {MAX_LIST_ITEMS}")
             stack.extend((v, f"{at}[{i}]", depth + 1) for i, v in enumerate(node))
         elif isinstance(node, str) and len(node) > MAX_STRING_CHARS:
-            raise ConfigError(f"{shorten(name, 2 * SHOWN_CHARS)}: string of {len(node)} characters, "
+            raise ConfigError(f"{name}: string of {len(node)} characters, "
                               f"at most {MAX_STRING_CHARS} (got {shorten(node)})")
 
 
@@ -321,14 +326,14 @@ def set_dotted(raw: dict[str, Any], dotted: str, value: Any) -> None:
                           "characters)")
     parts = dotted.split(".")
     if any(not p.strip() for p in parts):
-        raise ConfigError(f"{shorten(dotted)}: not a dotted key (an empty part)")
+        raise ConfigError(f"{_cut(dotted)}: not a dotted key (an empty part)")
     node = raw
     for i, p in enumerate(parts[:-1]):
         child = node.get(p)
         if child is None:
             child = node[p] = {}
         elif not isinstance(child, dict):
-            raise ConfigError(f"{shorten(dotted, 2 * SHOWN_CHARS)}: {'.'.join(parts[:i + 1])} is a value, "
+            raise ConfigError(f"{_cut(dotted)}: {_cut('.'.join(parts[:i + 1]))} is a value, "
                               f"not a table (got {shorten(child)})")
         node = child
     node[parts[-1]] = value

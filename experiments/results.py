@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -13,8 +14,8 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-__all__ = ["Progress", "no_progress", "ScenarioResult", "write_result", "write_summary", "json_default",
-           "summary_text"]
+__all__ = ["Progress", "no_progress", "ScenarioResult", "check_output_dir", "write_result", "write_summary",
+           "json_default", "summary_text"]
 
 #: ``progress(done, total)``: how far a scenario run is (the CLI draws it as a bar)
 Progress = Callable[[int, int], None]
@@ -49,6 +50,77 @@ def json_default(o: Any) -> Any:
     if isinstance(o, Path):
         return str(o)
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def _shown(path: Path) -> str:
+    text = repr(str(path))
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _stored_config(nc: Path) -> str | None:
+    """The ``config_toml`` attribute of a stored ``result.nc`` (``None`` when it cannot be read)."""
+    try:
+        with xr.open_dataset(nc, engine="h5netcdf") as ds:
+            text = ds.attrs.get("config_toml")
+    except Exception:  # noqa: BLE001 - any unreadable file counts as another run's
+        return None
+    return text if isinstance(text, str) else None
+
+
+def _probe(folder: Path) -> None:
+    """Create and remove an empty folder in ``folder``: the only sure test that it can be written."""
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".coobs-probe-", dir=folder))
+    except OSError as exc:
+        raise ValueError(f"out: cannot write in {_shown(folder)} ({exc.strerror or type(exc).__name__})") from None
+
+
+def check_output_dir(out: Path, *, config_toml: str | None = None, force: bool = False,
+                     foreign: Sequence[str] = ()) -> None:
+    """Check, before any computing, that :func:`write_result` can write into ``out``; writes nothing.
+
+    Parameters
+    ----------
+    out : Path
+        The output folder (it may not exist yet).
+    config_toml : str, optional
+        The text of the config to be run: a folder holding a ``result.nc`` of the same config text
+        may be written again (the run is repeated); one of another config needs ``force``.
+    force : bool
+        Replace the results of another run.
+    foreign : sequence of str
+        Names whose presence in ``out`` marks another command's results (e.g. a sweep store); they
+        need ``force`` too.
+
+    Raises
+    ------
+    ValueError
+        One line starting ``out:``: ``out`` or one of its parents is a file, the folder cannot be
+        written, or it holds another run's results and ``force`` is false.
+    """
+    out = Path(os.path.abspath(out))
+    try:
+        if out.exists() and not out.is_dir():
+            raise ValueError(f"out: {_shown(out)} is a file, not a folder")
+        if out.is_dir():
+            if not force:
+                for name in foreign:
+                    if (out / name).exists():
+                        raise ValueError(f"out: {_shown(out)} holds {name} of another command; choose another "
+                                         "folder or pass --force")
+                nc = out / "result.nc"
+                if nc.exists() and (config_toml is None or _stored_config(nc) != config_toml):
+                    raise ValueError(f"out: {_shown(out)} holds the results of another run; choose another "
+                                     "folder or pass --force to replace them")
+            _probe(out)
+        parent = out.parent
+        while not parent.exists():
+            parent = parent.parent
+        if not parent.is_dir():
+            raise ValueError(f"out: {_shown(parent)} is a file, not a folder")
+        _probe(parent)
+    except OSError as exc:
+        raise ValueError(f"out: {_shown(out)} cannot be used ({exc.strerror or type(exc).__name__})") from None
 
 
 def write_result(result: ScenarioResult, out: Path) -> None:

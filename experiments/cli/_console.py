@@ -7,15 +7,23 @@ from collections.abc import Callable
 import typer
 from rich.console import Console
 
-__all__ = ["console", "err_console", "fail", "progress_bar"]
+__all__ = ["console", "err_console", "fail", "progress_bar", "MAX_ERROR_CHARS"]
 
 console = Console()
 err_console = Console(stderr=True)
 
 
+#: longest error line printed, characters (after ``error: ``)
+MAX_ERROR_CHARS = 300
+
+
 def fail(message: str) -> typer.Exit:
-    """Print a one-line error and return the exit (code 2) to raise."""
-    err_console.print(f"error: {message}", markup=False, highlight=False, soft_wrap=True)
+    """Print a one-line error (white space runs joined, cut to :data:`MAX_ERROR_CHARS`) and return the exit
+    (code 2) to raise."""
+    text = " ".join(str(message)[:4 * MAX_ERROR_CHARS].split())
+    if len(text) > MAX_ERROR_CHARS:
+        text = text[:MAX_ERROR_CHARS - 3] + "..."
+    err_console.print(f"error: {text}", markup=False, highlight=False, soft_wrap=True)
     return typer.Exit(code=2)
 
 

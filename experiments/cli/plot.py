@@ -1,4 +1,7 @@
-"""``coobs plot DIR``: redraw the figures of a stored run or sweep from its result files."""
+"""``coobs plot DIR``: redraw the figures of a stored run or sweep from its result files.
+
+A folder without results, or results that cannot be read, exit with code 2 and one line.
+"""
 
 from __future__ import annotations
 
@@ -16,14 +19,20 @@ __all__ = ["plot"]
 
 def plot(out: Path = typer.Argument(..., help="A directory written by 'coobs run' or 'coobs sweep'.")) -> None:
     """Redraw the figures of a stored run or sweep from its result files."""
-    if not (out / "result.nc").is_file() and not (out / STORE_NAME).exists():
-        raise fail(f"out: no result.nc or {STORE_NAME} in {out}")
-    if (out / "result.nc").is_file():
-        try:
-            figures = redraw_run(out)
-        except ConfigError as exc:
-            raise fail(str(exc)) from None
-    else:
-        figures = redraw_sweep(out)
+    shown = repr(str(out)) if len(str(out)) <= 58 else repr(str(out)[:55]) + "..."
+    try:
+        is_run = (out / "result.nc").is_file()
+        is_sweep = (out / STORE_NAME).exists()
+    except OSError as exc:
+        raise fail(f"out: {shown} cannot be used ({exc.strerror or type(exc).__name__})") from None
+    if not is_run and not is_sweep:
+        raise fail(f"out: no result.nc or {STORE_NAME} in {shown}")
+    try:
+        figures = redraw_run(out) if is_run else redraw_sweep(out)
+    except ConfigError as exc:
+        raise fail(str(exc)) from None
+    except (OSError, ValueError, KeyError) as exc:
+        what = "result.nc" if is_run else STORE_NAME
+        raise fail(f"out: {what} in {shown} cannot be read ({type(exc).__name__}: {exc})") from None
     for f in figures:
         console.print(f"figure: {f}")
