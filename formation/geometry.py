@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from attitude.quaternion import check_quat, matrix_from_quat
+from attitude.quaternion import check_quat, check_vec3, matrix_from_quat
 
 __all__ = ["ViewGeometry", "cone_half_angle", "look_at", "symmetric_views", "optical_axis_angles"]
 
@@ -68,15 +68,24 @@ class ViewGeometry:
 
 
 def cone_half_angle(n: int, axis_angle_rad: float) -> float:
-    """φ with adjacent optical axes at ``axis_angle_rad``: ``sin φ = sin(γ/2) / sin(π/n)``."""
+    """φ with adjacent optical axes at ``axis_angle_rad``: ``sin φ = sin(γ/2) / sin(π/n)``.
+
+    The geometry exists for ``0 < γ <= 2π/n`` (φ from 0 to 90°); a larger γ would fold back onto
+    ``2π/n − γ`` through the sine (n = 2, γ = 190° would silently give 170°) and is refused.
+    ``ValueError`` for ``n < 1`` or γ outside that domain (γ is ignored for n = 1).
+    """
+    if not isinstance(n, int | np.integer) or n < 1:
+        raise ValueError(f"n: number of views must be an integer >= 1, got {n!r}")
     if n == 1:
         return 0.0
-    s = np.sin(0.5 * axis_angle_rad) / np.sin(np.pi / n)
-    if s > 1.0 + 1e-12:
+    if not np.isfinite(axis_angle_rad) or axis_angle_rad <= 0:
+        raise ValueError(f"axis_angle_rad: must be positive and finite, got {axis_angle_rad!r}")
+    if axis_angle_rad > 2 * np.pi / n * (1.0 + 1e-12):
         raise ValueError(
-            f"axis_angle_deg: {np.rad2deg(axis_angle_rad):.6g} deg is impossible for {n} views on a cone "
-            f"(at most {np.rad2deg(2 * np.pi / n):.6g} deg)"
+            f"axis_angle_rad: {axis_angle_rad:.6g} rad is impossible for {n} views on a cone "
+            f"(at most 2π/{n} = {2 * np.pi / n:.6g} rad)"
         )
+    s = np.sin(0.5 * axis_angle_rad) / np.sin(np.pi / n)
     return float(np.arcsin(min(s, 1.0)))
 
 
@@ -84,12 +93,12 @@ def look_at(r_CT_H: ArrayLike, target_H: ArrayLike, up_H: ArrayLike) -> np.ndarr
     """Camera-from-world poses ``T_CW (..., 4, 4)`` of cameras at ``r_CT_H`` looking at ``target_H``.
 
     Camera z points at the target; camera −y (image up) is as close as possible to ``up_H``.
-    Raises ``ValueError`` when ``up_H`` is parallel to the line of sight or the camera is at the
-    target.
+    Raises ``ValueError`` when an argument is not finite or not ``(..., 3)``, when ``up_H`` is
+    parallel to the line of sight or the camera is at the target.
     """
-    r = np.asarray(r_CT_H, dtype=float)
-    tgt = np.broadcast_to(np.asarray(target_H, dtype=float), r.shape)
-    up = np.broadcast_to(np.asarray(up_H, dtype=float), r.shape)
+    r = check_vec3(r_CT_H, name="r_CT_H")
+    tgt = np.broadcast_to(check_vec3(target_H, name="target_H"), r.shape)
+    up = np.broadcast_to(check_vec3(up_H, name="up_H"), r.shape)
     z = tgt - r
     dist = np.linalg.norm(z, axis=-1, keepdims=True)
     if np.any(dist == 0):
@@ -128,23 +137,36 @@ def symmetric_views(
     distance_m : float
         Distance of every camera from the target's centre, m, > 0.
     axis_angle_deg : float
-        Angle between adjacent optical axes γ, degrees, in (0, 360/n] (ignored for n = 1).
+        Angle between adjacent optical axes γ, degrees, in (0, 360/n] (finite, otherwise ignored,
+        for n = 1).  Beyond 360/n the cone would fold back (``sin φ = sin(γ/2)/sin(π/n)``): refused.
     orientation : (4,) array_like, keyword-only
         ``q_HG``, placing the geometry frame in H (default: G = H, cone axis = orbit normal).
     target_center_H : (3,) array_like, keyword-only
-        Centre the cameras look at, H components, m.
+        Centre the cameras look at, H components, m (finite).
     azimuth_offset_rad : float, keyword-only
-        Azimuth of camera 0 about the cone axis, rad.
+        Azimuth of camera 0 about the cone axis, rad (finite).
+
+    Raises
+    ------
+    ValueError
+        One line naming the argument and its value, for any argument outside its domain.
     """
     if not isinstance(n, int | np.integer) or n < 1:
         raise ValueError(f"n: number of views must be an integer >= 1, got {n!r}")
     if not np.isfinite(distance_m) or distance_m <= 0:
         raise ValueError(f"distance_m: must be positive, got {distance_m!r}")
-    if n > 1 and (not np.isfinite(axis_angle_deg) or axis_angle_deg <= 0):
-        raise ValueError(f"axis_angle_deg: must be positive, got {axis_angle_deg!r}")
+    if not np.isfinite(axis_angle_deg) or (n > 1 and axis_angle_deg <= 0):
+        raise ValueError(f"axis_angle_deg: must be positive and finite, got {axis_angle_deg!r}")
+    if n > 1 and axis_angle_deg > 360.0 / n * (1.0 + 1e-12):
+        raise ValueError(f"axis_angle_deg: {axis_angle_deg:.6g} deg is impossible for {n} views on a cone "
+                         f"(at most 360/{n} = {360.0 / n:.6g} deg)")
+    if not np.isfinite(azimuth_offset_rad):
+        raise ValueError(f"azimuth_offset_rad: must be finite, got {azimuth_offset_rad!r}")
     q_HG = check_quat(orientation, name="orientation")
     R_HG = matrix_from_quat(q_HG)
-    c = np.asarray(target_center_H, dtype=float)
+    c = check_vec3(target_center_H, name="target_center_H")
+    if c.shape != (3,):
+        raise ValueError(f"target_center_H: expected shape (3,), got {c.shape}")
     phi = cone_half_angle(int(n), np.deg2rad(axis_angle_deg))
     az = azimuth_offset_rad + 2.0 * np.pi * np.arange(n) / n
     u_G = np.stack([np.sin(phi) * np.cos(az), np.sin(phi) * np.sin(az), np.full(n, np.cos(phi))], -1)

@@ -61,3 +61,35 @@ def test_impossible_geometry_and_bad_arguments_are_named():
         symmetric_views(0, 50.0, 10.0)
     with pytest.raises(ValueError, match="orientation"):
         symmetric_views(2, 50.0, 10.0, orientation=[1.0, 1.0, 0.0, 0.0])
+
+
+@pytest.mark.parametrize(("n", "gamma_deg"), [(2, 190.0), (3, 121.0), (3, 250.0), (4, 91.0)])
+def test_axis_angle_beyond_360_over_n_is_refused_instead_of_folding_back(n, gamma_deg):
+    """n = 2, γ = 190° used to give the geometry of 170° (sin(γ/2) folds back above 360°/n)."""
+    with pytest.raises(ValueError, match=rf"^axis_angle_deg: {gamma_deg:g} deg is impossible for {n} views"):
+        symmetric_views(n, 50.0, gamma_deg)
+
+
+@pytest.mark.parametrize("n", [2, 3, 4])
+def test_axis_angle_of_exactly_360_over_n_is_the_widest_geometry_at_phi_90_deg(n):
+    g = symmetric_views(n, 50.0, 360.0 / n)
+    assert np.rad2deg(g.cone_half_angle_rad) == pytest.approx(90.0, abs=1e-6)
+    assert np.rad2deg(optical_axis_angles(g.boresight_H)[0, 1]) == pytest.approx(360.0 / n, abs=1e-6)
+
+
+@pytest.mark.parametrize(("kwargs", "name"), [
+    ({"target_center_H": [np.nan, 0.0, 0.0]}, "target_center_H"),
+    ({"target_center_H": [0.0, np.inf, 0.0]}, "target_center_H"),
+    ({"target_center_H": [0.0, 0.0]}, "target_center_H"),
+    ({"azimuth_offset_rad": np.nan}, "azimuth_offset_rad"),
+])
+def test_non_finite_or_misshapen_keyword_arguments_are_refused_not_turned_into_nan_poses(kwargs, name):
+    with pytest.raises(ValueError, match=rf"^{name}:"):
+        symmetric_views(3, 50.0, 10.0, **kwargs)
+
+
+def test_nan_axis_angle_is_refused_even_for_one_view_and_look_at_refuses_nan():
+    with pytest.raises(ValueError, match="^axis_angle_deg: must be positive and finite"):
+        symmetric_views(1, 50.0, np.nan)
+    with pytest.raises(ValueError, match="^target_H: contains non-finite"):
+        look_at(np.array([0.0, -10.0, 0.0]), [np.nan, 0.0, 0.0], np.array([0.0, 0.0, 1.0]))
