@@ -55,6 +55,12 @@ RECENTRE_RATIO = 1e3  # second pass about the centroids when Σw(|p̄|² + |q̄|
 FLAG_NONFINITE_ROWS = 1  # the problem has rows with NaN (skipped)
 FLAG_SVD = 2  # the quaternion is ill-determined: the caller refits with the SVD reference
 FLAG_INF = 4  # an infinite coordinate was seen: the caller raises
+FLAG_RANGE = 8  # Σw(|p|² + |q|²) above MAX_SECOND_MOMENT_M2 (or overflowed): the caller raises
+
+#: Largest accepted raw second moment ``Σ w (|p|² + |q|²)`` of one problem, m²: below it the
+#: quartic of the Horn/QCP kernel (``‖S‖⁴``, ``‖adj S‖²``) stays finite; above it (coordinates of
+#: about 1e30 m, or squares that overflow) the input is refused as too large.
+MAX_SECOND_MOMENT_M2 = 1e60
 
 _JIT = dict(cache=True, nogil=True, error_model="numpy")
 # the sums of the fast pass may be reassociated (so that they vectorise); nothing is assumed
@@ -253,7 +259,7 @@ def kabsch_batch(P: np.ndarray, Q: np.ndarray, W: np.ndarray, weighted: bool, R:
     npts : ndarray (B,) int64
         Usable points (finite in both clouds, w > 0).
     flags : ndarray (B,) uint8
-        ``FLAG_NONFINITE_ROWS``, ``FLAG_SVD``, ``FLAG_INF`` bits.
+        ``FLAG_NONFINITE_ROWS``, ``FLAG_SVD``, ``FLAG_INF``, ``FLAG_RANGE`` bits.
     """
     B = P.shape[0]
     mo = np.empty((_N_M, BLOCK))
@@ -271,6 +277,8 @@ def kabsch_batch(P: np.ndarray, Q: np.ndarray, W: np.ndarray, weighted: bool, R:
                 m, skipped, inf = _moments_about(P, Q, W, b, weighted, 0.0, 0.0, 0.0, 0.0, 0.0,
                                                  0.0)
                 f = (FLAG_NONFINITE_ROWS if skipped else 0) | (FLAG_INF if inf else 0)
+            if not m[_M_G] <= MAX_SECOND_MOMENT_M2 and not f & FLAG_INF:
+                f |= FLAG_RANGE
             (mo[0, k], mo[1, k], mo[2, k], mo[3, k], mo[4, k], mo[5, k], mo[6, k], mo[7, k],
              mo[8, k], mo[9, k], mo[10, k], mo[11, k], mo[12, k], mo[13, k], mo[14, k], mo[15, k],
              mo[16, k], npts[b]) = m

@@ -15,10 +15,12 @@ from numpy.typing import ArrayLike
 
 from reconstruction._geometry import as_float, check_points, scalar_or_array
 from reconstruction.registration import _kabsch_kernel
+from reconstruction.registration._kabsch_kernel import MAX_SECOND_MOMENT_M2
 from reconstruction.registration.qcp import COINCIDENT_TOL, rotations_from_correlations
 from reconstruction.registration.result import KABSCH_REASONS, RigidRegistration
 
-__all__ = ["fit_rigid", "kabsch_flat", "kabsch_flat_numpy", "prepare_clouds"]
+__all__ = ["MAX_SECOND_MOMENT_M2", "check_second_moments", "fit_rigid", "kabsch_flat", "kabsch_flat_numpy",
+           "prepare_clouds"]
 
 _CHUNK_COORDS = 38_400  # coordinates per cloud per chunk of the moment pass (300 kB, in cache)
 _SUM_GEMM_MAX_N = 4096  # up to this many points, coordinate sums by one GEMM per chunk
@@ -212,6 +214,13 @@ def kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None) -> KabschFla
     if np.any(flags):
         if np.any(flags & _kabsch_kernel.FLAG_INF):
             raise ValueError("P, Q: contain infinite values (use NaN for absent points)")
+        if np.any(flags & _kabsch_kernel.FLAG_RANGE):
+            b = int(np.argmax(flags & _kabsch_kernel.FLAG_RANGE))
+            vb = np.all(np.isfinite(P[b]), -1) & np.all(np.isfinite(Q[b]), -1)
+            with np.errstate(over="ignore", invalid="ignore"):
+                g = float(np.sum(np.where(vb, 1.0 if w is None else w[b], 0.0)
+                                 * np.sum(np.where(vb[:, None], P[b] ** 2 + Q[b] ** 2, 0.0), -1)))
+            raise_too_large(g, b)
         ib = np.nonzero(flags & _kabsch_kernel.FLAG_NONFINITE_ROWS)[0]
         if ib.size:
             rows = np.ones((B, N), bool) if w is None else w > 0
@@ -223,10 +232,32 @@ def kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None) -> KabschFla
     return R, t, code, npts, rms, rows
 
 
+def raise_too_large(g: float, b: int) -> None:
+    """``ValueError`` for problem ``b`` whose second moment ``g`` exceeds the accepted range."""
+    raise ValueError(f"P, Q: coordinates too large: Σ w (|p|² + |q|²) of problem {b} is {g:.3g} m², "
+                     f"above {MAX_SECOND_MOMENT_M2:g} m² (squares overflow; weights count too)")
+
+
+def check_second_moments(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None) -> None:
+    """Refuse flat ``(B, N, 3)`` problems whose raw second moment ``Σ w (|p|² + |q|²)`` over the
+    finite rows exceeds :data:`MAX_SECOND_MOMENT_M2` or overflows (``ValueError``, like ±inf)."""
+    if P.shape[0] == 0 or P.shape[1] == 0:
+        return
+    rows = np.all(np.isfinite(P), -1) & np.all(np.isfinite(Q), -1)  # NaN, ±inf: judged elsewhere
+    with np.errstate(over="ignore", invalid="ignore"):
+        e = np.where(rows, np.sum(P * P + Q * Q, -1), 0.0)
+        g = np.sum(e if w is None else np.where(rows, w, 0.0) * e, -1)
+    bad = ~(g <= MAX_SECOND_MOMENT_M2)
+    if np.any(bad):
+        b = int(np.argmax(bad))
+        raise_too_large(float(g[b]), b)
+
+
 def kabsch_flat_numpy(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None) -> KabschFlat:
     """NumPy reference of :func:`kabsch_flat` (same returns): the moments of :func:`_moments`,
     then :func:`reconstruction.registration.qcp.rotations_from_correlations` on the whole batch."""
     B, N = P.shape[0], P.shape[1]
+    check_second_moments(P, Q, w)
     pbar, qbar, S, sw, G = _moments(P, Q, w)
     npts = np.full(B, N) if w is None else np.sum(w > 0, axis=-1)
     rows = None
@@ -289,15 +320,23 @@ def fit_rigid(P: ArrayLike, Q: ArrayLike, weights: ArrayLike | None = None) -> R
     -------
     RigidRegistration
         ``method="kabsch"``; ``rms_m`` is the weighted RMS residual; ``cov`` and ``chi2`` are NaN.
-        Fewer than 3 usable points or collinear points give ``ok=False`` with the reason and NaN
-        ``R``, ``t``.
+        Fewer than 3 usable points (an empty ``(0, 3)`` cloud included) or collinear points give
+        ``ok=False`` with the reason and NaN ``R``, ``t``.
+
+    Raises
+    ------
+    ValueError
+        For misshapen input, negative or non-finite weights, ±inf coordinates (NaN marks an
+        absent point), and for a problem whose second moment ``Σ w (|p|² + |q|²)`` exceeds
+        :data:`MAX_SECOND_MOMENT_M2` (coordinates of about 1e30 m, or whose squares overflow).
     """
     P, Q, w = prepare_clouds(P, Q, weights, scan=False)
     shape = P.shape
     batch, N = shape[:-2], shape[-2]
-    Pf = P.reshape((-1, N, 3))
-    Qf = Q.reshape((-1, N, 3))
-    wf = None if w is None else w.reshape((-1, N))
+    B = int(np.prod(batch, dtype=np.int64))
+    Pf = P.reshape((B, N, 3))
+    Qf = Q.reshape((B, N, 3))
+    wf = None if w is None else w.reshape((B, N))
     R, t, code, npts, rms, rows = kabsch_flat(Pf, Qf, wf)
     ok = code == 0
     if rows is None and wf is None:

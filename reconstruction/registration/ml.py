@@ -13,7 +13,7 @@ from scipy.stats import chi2 as _chi2
 
 from attitude.batch import cross_product_matrices, matrices_from_rotvecs
 from reconstruction._geometry import as_float, check_probability, scalar_or_array
-from reconstruction.registration.kabsch import kabsch_flat, prepare_clouds
+from reconstruction.registration.kabsch import check_second_moments, kabsch_flat, prepare_clouds
 from reconstruction.registration.residuals import (
     check_covariance_pair,
     mahalanobis2,
@@ -45,7 +45,9 @@ def fit_rigid_ml(P: ArrayLike, Q: ArrayLike, cov_P: ArrayLike, cov_Q: ArrayLike,
     P, Q : array_like (..., N, 3)
         Matched clouds in a common frame (e.g. W at t and t + Δt), m; NaN rows are ignored.
     cov_P, cov_Q : array_like (..., N, 3, 3)
-        Per-point covariances in the same frame, m² (e.g. ``Triangulation.cov_W``).
+        Per-point covariances in the same frame, m² (e.g. ``Triangulation.cov_W``): symmetric
+        positive semi-definite, at each point at least one positive definite; a NaN matrix marks
+        an absent point (:func:`reconstruction.registration.residuals.check_covariance_pair`).
     robust : bool
         Start from :func:`fit_rigid_robust` (RANSAC with the same gate) and gate outliers; with
         ``False``, start from Kabsch weighted by ``1/tr C`` and keep every point.
@@ -66,20 +68,21 @@ def fit_rigid_ml(P: ArrayLike, Q: ArrayLike, cov_P: ArrayLike, cov_Q: ArrayLike,
         ``method="ml"`` with ``cov`` (6×6, ``[δθ, δt]``), ``inliers``, ``chi2`` and ``dof``.
     """
     P, Q, _ = prepare_clouds(P, Q, None)
-    covs = check_covariance_pair(cov_P, cov_Q, P.shape)
-    if covs is None:
-        raise ValueError("cov_P, cov_Q: required")
     gate_probability = check_probability(gate_probability, "gate_probability")
+    if cov_P is None or cov_Q is None:
+        raise ValueError("cov_P, cov_Q: required")
+    covs = check_covariance_pair(cov_P, cov_Q, P.shape)
     batch, N = P.shape[:-2], P.shape[-2]
-    Pf = P.reshape((-1, N, 3))
-    Qf = Q.reshape((-1, N, 3))
-    B = Pf.shape[0]
-    cPf = np.broadcast_to(covs[0], P.shape + (3,)).reshape((-1, N, 3, 3))
-    cQf = np.broadcast_to(covs[1], P.shape + (3,)).reshape((-1, N, 3, 3))
+    B = int(np.prod(batch, dtype=np.int64))
+    Pf = P.reshape((B, N, 3))
+    Qf = Q.reshape((B, N, 3))
+    cPf = np.broadcast_to(covs[0], P.shape + (3,)).reshape((B, N, 3, 3))
+    cQf = np.broadcast_to(covs[1], P.shape + (3,)).reshape((B, N, 3, 3))
     valid = (np.all(np.isfinite(Pf), -1) & np.all(np.isfinite(Qf), -1)
              & np.all(np.isfinite(cPf), (-2, -1)) & np.all(np.isfinite(cQf), (-2, -1)))
     Pz = np.where(valid[..., None], Pf, 0.0)
     Qz = np.where(valid[..., None], Qf, 0.0)
+    check_second_moments(Pz, Qz, None)
     cPz = np.where(valid[..., None, None], cPf, np.eye(3))
     cQz = np.where(valid[..., None, None], cQf, np.eye(3))
     gate2 = _chi2.ppf(gate_probability, 3)

@@ -161,7 +161,8 @@ def rotations_block(st: np.ndarray, nb: int, out: np.ndarray) -> None:
         z = b33 if use else z
         best = nj if use else best
         l3 = max(lam, 1e-300)
-        weak = not (math.sqrt(best) > 1e-10 * (l3 * l3 * l3)) and math.isfinite(lam)
+        # an overflowed (inf or NaN) eigenvector norm is weak too: the SVD then solves the problem
+        weak = not (math.sqrt(best) > 1e-10 * (l3 * l3 * l3) and best < math.inf) and math.isfinite(lam)
         out[_WEAK, k] = 1.0 if weak else 0.0
         s = 2.0 / best
         xs, ys, zs = x * s, y * s, z * s

@@ -12,7 +12,7 @@ from numpy.typing import ArrayLike
 from scipy.stats import chi2 as _chi2
 
 from reconstruction._geometry import check_positive, check_probability, scalar_or_array
-from reconstruction.registration.kabsch import kabsch_flat, prepare_clouds
+from reconstruction.registration.kabsch import check_second_moments, kabsch_flat, prepare_clouds
 from reconstruction.registration.residuals import (
     check_covariance_pair,
     mahalanobis2,
@@ -45,7 +45,9 @@ def fit_rigid_robust(P: ArrayLike, Q: ArrayLike, *, weights: ArrayLike | None = 
     weights : array_like (..., N), optional
         Weights of the refits (003 eq 12).
     cov_P, cov_Q : array_like (..., N, 3, 3), optional
-        Per-point covariances, m² (both or neither).
+        Per-point covariances, m² (both or neither): symmetric positive semi-definite, at each
+        point at least one positive definite, NaN for an absent point
+        (:func:`reconstruction.registration.residuals.check_covariance_pair`).
     threshold_m : float, optional
         Euclidean inlier threshold, m; required when no covariances are given.
     gate_probability : float
@@ -66,6 +68,7 @@ def fit_rigid_robust(P: ArrayLike, Q: ArrayLike, *, weights: ArrayLike | None = 
     """
     P, Q, w = prepare_clouds(P, Q, weights)
     batch, N = P.shape[:-2], P.shape[-2]
+    B = int(np.prod(batch, dtype=np.int64))
     covs = check_covariance_pair(cov_P, cov_Q, P.shape)
     if covs is None and threshold_m is None:
         raise ValueError("threshold_m: required when cov_P and cov_Q are not given")
@@ -78,17 +81,17 @@ def fit_rigid_robust(P: ArrayLike, Q: ArrayLike, *, weights: ArrayLike | None = 
     rng = np.random.default_rng(rng)
     gate2 = _chi2.ppf(gate_probability, 3) if covs is not None else threshold_m**2
 
-    Pf = P.reshape((-1, N, 3))
-    Qf = Q.reshape((-1, N, 3))
-    B = Pf.shape[0]
-    wf = np.ones((B, N)) if w is None else w.reshape((-1, N))
+    Pf = P.reshape((B, N, 3))
+    Qf = Q.reshape((B, N, 3))
+    wf = np.ones((B, N)) if w is None else w.reshape((B, N))
     valid = np.all(np.isfinite(Pf), -1) & np.all(np.isfinite(Qf), -1) & (wf > 0)
     if covs is not None:
-        cPf = np.broadcast_to(covs[0], P.shape + (3,)).reshape((-1, N, 3, 3))
-        cQf = np.broadcast_to(covs[1], P.shape + (3,)).reshape((-1, N, 3, 3))
+        cPf = np.broadcast_to(covs[0], P.shape + (3,)).reshape((B, N, 3, 3))
+        cQf = np.broadcast_to(covs[1], P.shape + (3,)).reshape((B, N, 3, 3))
         valid &= np.all(np.isfinite(cPf), (-2, -1)) & np.all(np.isfinite(cQf), (-2, -1))
     Pz = np.where(valid[..., None], Pf, 0.0)
     Qz = np.where(valid[..., None], Qf, 0.0)
+    check_second_moments(Pz, Qz, None if w is None else np.where(valid, wf, 0.0))
     nvalid = np.sum(valid, -1)
 
     def score(R: np.ndarray, t: np.ndarray, sel: np.ndarray) -> np.ndarray:

@@ -410,3 +410,69 @@ def test_qcp_kernel_matches_the_svd_rotation_for_random_and_reflected_correlatio
     np.testing.assert_allclose(np.linalg.det(R[full]), 1.0, atol=1e-12)
     assert not np.any(collinear[full]) and collinear[250] and collinear[251]
     assert np.all(np.isnan(R[251]))
+
+
+# ---------------------------------------------------------------- garbage in (issue 17)
+def _cloud(n=12, seed=3):
+    rng = np.random.default_rng(seed)
+    P = rng.normal(size=(n, 3))
+    R = Rotation.from_rotvec([0.2, -0.4, 0.3]).as_matrix()
+    return P, P @ R.T + [1.0, 2.0, 3.0], R
+
+
+@pytest.mark.parametrize("shape", [(0, 3), (4, 0, 3)])
+def test_empty_clouds_give_ok_false_with_too_few_points_in_every_fit(shape):
+    P = np.zeros(shape)
+    cov = np.zeros(shape + (3,))
+    fits = [fit_rigid(P, P), fit_rigid_robust(P, P, threshold_m=0.1, rng=0),
+            fit_rigid_ml(P, P, cov, cov, rng=0)]
+    for fit in fits:
+        assert np.all(~np.asarray(fit.ok))
+        assert np.all(np.asarray(fit.failure_reason) == "fewer than 3 usable points")
+        assert np.shape(fit.ok) == shape[:-2]
+
+
+@pytest.mark.parametrize("scale", [1e155, 1e200])
+def test_coordinates_whose_squares_overflow_are_refused_as_too_large_not_collinear(scale):
+    P, Q, _ = _cloud()
+    cov = np.broadcast_to(1e-4 * np.eye(3), P.shape + (3,))
+    for fit in (lambda: fit_rigid(P * scale, Q * scale),
+                lambda: fit_rigid_robust(P * scale, Q * scale, threshold_m=0.1, rng=0),
+                lambda: fit_rigid_ml(P * scale, Q * scale, cov, cov, rng=0)):
+        with pytest.raises(ValueError, match=r"^P, Q: coordinates too large"):
+            fit()
+
+
+@pytest.mark.parametrize("scale", [1e-30, 1e25, 1e28])
+def test_clouds_at_extreme_but_accepted_scales_give_the_right_rotation(scale):
+    """Up to 1e28 the QCP quartic overflowed (R = I reported with ok=True at 1e25): the SVD takes over."""
+    P, Q, R = _cloud()
+    for fit in (fit_rigid(P * scale, Q * scale), fit_rigid(P * scale, Q * scale, np.full(12, 2.0))):
+        assert fit.ok
+        np.testing.assert_allclose(fit.R, R, atol=1e-12)
+
+
+@pytest.mark.parametrize(("cov_P", "cov_Q", "name"), [
+    (-1e-4 * np.eye(3), 1e-4 * np.eye(3), "cov_P: not symmetric positive semi-definite"),
+    (1e-4 * np.eye(3), np.diag([1e-4, -1e-6, 1e-4]), "cov_Q: not symmetric positive semi-definite"),
+    (1e-4 * np.eye(3), [[1e-4, 1e-5, 0], [0, 1e-4, 0], [0, 0, 1e-4]], "cov_Q: not symmetric"),
+    (np.zeros((3, 3)), np.diag([1e-4, 1e-4, 0.0]), r"cov_P, cov_Q: both singular"),
+])
+def test_covariances_that_are_not_positive_semi_definite_are_refused_naming_them(cov_P, cov_Q, name):
+    P, Q, _ = _cloud()
+    cP = np.broadcast_to(np.asarray(cov_P, float), P.shape + (3,))
+    cQ = np.broadcast_to(np.asarray(cov_Q, float), P.shape + (3,))
+    with pytest.raises(ValueError, match=rf"^{name}"):
+        fit_rigid_ml(P, Q, cP, cQ, robust=False)
+    with pytest.raises(ValueError, match=rf"^{name}"):
+        fit_rigid_robust(P, Q, cov_P=cP, cov_Q=cQ, rng=0)
+
+
+def test_a_nan_covariance_marks_an_absent_point_and_one_exact_cloud_is_accepted():
+    P, Q, R = _cloud()
+    cP = np.zeros(P.shape + (3,))  # exact source points, noisy targets: still invertible
+    cQ = np.tile(1e-4 * np.eye(3), (12, 1, 1))
+    cQ[5] = np.nan
+    fit = fit_rigid_ml(P, Q, cP, cQ, robust=False)
+    assert fit.ok and not fit.inliers[5] and fit.n_inliers == 11
+    np.testing.assert_allclose(fit.R, R, atol=1e-9)
