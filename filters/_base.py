@@ -39,12 +39,14 @@ def _missing(z: object, kind: type) -> bool:
     return False
 
 
-def _no_measurement(M: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Rows of an epoch without measurement: identity quaternions, unit covariances, none valid.
+def _no_measurement(M: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Rows of an epoch without measurement: identity quaternions, unit covariances, none valid,
+    none bad.
 
     With nothing valid the gain is zero, so these placeholders never reach the estimate.
     """
-    return np.tile(_IDENTITY_Q, (M, 1)), np.tile(_eye(3), (M, 1, 1)), np.zeros(M, bool)
+    none = np.zeros(M, bool)
+    return np.tile(_IDENTITY_Q, (M, 1)), np.tile(_eye(3), (M, 1, 1)), none, none
 
 
 class AttitudeFilter(ABC):
@@ -194,9 +196,12 @@ class AttitudeFilter(ABC):
         ----------
         state : FilterState
         z : AbsoluteAttitudeMeasurement or None
-            One row per trial (or one shared row).  NaN rows, rows with a non-finite covariance,
-            and ``None`` (no measurement this epoch) leave those trials as they are, apart from
-            the symmetrisation of P that every update applies and a NaN ``last_nis``.
+            One row per trial (or one shared row).  All-NaN rows and ``None`` (no measurement
+            this epoch) are missing: they leave those trials as they are, apart from the
+            symmetrisation of P that every update applies and a NaN ``last_nis``.  Bad rows (±inf
+            or partly NaN components, a zero quaternion, a covariance that is not finite or not
+            positive definite) leave the trials as they are too, but are counted in
+            ``n_rejected`` (not towards ``reset_after_rejections``).
 
         Returns
         -------
@@ -228,8 +233,9 @@ class AttitudeFilter(ABC):
         state : FilterState
             Must hold a clone (:meth:`clone`) taken at the earlier epoch of the increment.
         z : IncrementMeasurement or None
-            One row per trial (or one shared row).  NaN rows, rows with a non-finite covariance,
-            and ``None`` (no increment this epoch) only re-clone those trials.
+            One row per trial (or one shared row).  All-NaN rows and ``None`` (no increment
+            this epoch) only re-clone those trials; bad rows (as in :meth:`update_absolute`) only
+            re-clone them too and are counted in ``n_rejected``.
 
         Returns
         -------
@@ -285,8 +291,12 @@ class AttitudeFilter(ABC):
         return q, w, P, qc, p
 
     def _finish(self, state: FilterState, *, q, w, P, qc, p, accepted=None, rejected=None,
-                nis=None, t_s=None, t_clone_s=None, check_pd=True) -> FilterState:
+                nis=None, t_s=None, t_clone_s=None, check_pd=True, bad=None) -> FilterState:
         """Assemble the new state: detect failures, NaN the failed rows, count measurements.
+
+        ``bad`` rows (unusable measurement rows, see :meth:`_measurement_rows`) count in
+        ``n_rejected`` but not towards ``reset_after_rejections``: they say nothing about the
+        filter's own consistency.
 
         With ``check_pd`` (after updates) P is symmetrised and its core block Cholesky-tested; a
         prediction (``check_pd=False``) only tests that the estimates stayed finite, since
@@ -327,6 +337,8 @@ class AttitudeFilter(ABC):
             rej = rejected & ~failed
             n_acc = n_acc + acc
             n_rej = n_rej + rej
+            if bad is not None:
+                n_rej = n_rej + (bad & ~failed)
             consec = np.where(rej, consec + 1, np.where(acc, 0, consec))
             if self.reset_after_rejections is not None:
                 reset = consec >= self.reset_after_rejections
@@ -352,14 +364,22 @@ class AttitudeFilter(ABC):
         )
 
     @staticmethod
-    def _measurement_rows(z: np.ndarray, M: int, width: int, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """Measurement batch ``(M, width)`` and its validity mask; NaN rows are missing."""
+    def _measurement_rows(z: np.ndarray, M: int, width: int, name: str
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Measurement batch ``(M, width)``, its validity mask and its mask of bad rows.
+
+        A row whose components are all NaN is missing (neither valid nor bad).  A row with ±inf
+        or only some NaN components, and for quaternions (``width == 4``) a row of norm
+        ``<= 1e-6``, is bad: replaced by a harmless placeholder, never used, and counted as
+        rejected by the caller.  Valid quaternions are normalised.
+        """
         z = np.asarray(z, dtype=float)
         if z.shape == (width,):
             z = np.broadcast_to(z, (M, width))
         if z.shape != (M, width):
             raise ValueError(f"{name}: expected shape ({width},) or ({M}, {width}), got {z.shape}")
         valid = np.isfinite(z).all(1)
+        bad = ~valid & ~np.isnan(z).all(1)
         if width == 4:
             if not valid.all():
                 z = np.where(valid[:, None], z, _IDENTITY_Q)
@@ -367,18 +387,31 @@ class AttitudeFilter(ABC):
             small = nz[:, 0] <= 1e-6
             if small.any():
                 valid = valid & ~small
+                bad = bad | small
                 z = np.where(small[:, None], _IDENTITY_Q, z)
                 nz = np.where(small[:, None], 1.0, nz)
             z = z / nz
-        return z, valid
+        return z, valid, bad
 
     @staticmethod
     def _cov_rows(cov: ArrayLike, M: int, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Symmetrised covariance batch ``(M, 3, 3)`` and the mask of usable rows.
+
+        A row is usable when it is finite and positive definite (leading principal minors of its
+        symmetric part > 0); the others are replaced by the identity, so that no NaN and no
+        indefinite matrix reaches the filter's algebra.
+        """
         cov = np.asarray(cov, dtype=float)
         cov = as_batch(cov, M, (3, 3), name)
         finite = np.isfinite(cov).all((1, 2))
         cov = sym(cov) if finite.all() else np.where(finite[:, None, None], sym(cov), np.eye(3))
-        return cov, finite
+        a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 0, 2]
+        d, e, f = cov[:, 1, 1], cov[:, 1, 2], cov[:, 2, 2]
+        det = a * (d * f - e * e) - b * (b * f - c * e) + c * (b * e - c * d)
+        ok = finite & (a > 0) & (a * d - b * b > 0) & (det > 0)
+        if not ok.all():
+            cov = np.where(ok[:, None, None], cov, np.eye(3))
+        return cov, ok
 
     def _gated_update(self, P, r, H, R, valid, G=None):
         """Batched Kalman update with chi-square gating.
@@ -435,30 +468,38 @@ class AttitudeFilter(ABC):
         Pn = IKH @ P @ IKH.mT + K @ R @ K.mT
         return dx, Pn, passed, rejected, nis
 
+    @staticmethod
+    def _usable(state: FilterState, valid, bad, cov_ok):
+        """``(valid, bad)`` of the trials: a present row with an unusable covariance is bad too;
+        failed trials are neither."""
+        bad = (bad | (valid & ~cov_ok)) & ~state.failed
+        return valid & cov_ok & ~state.failed, bad
+
     def _absolute_inputs(self, state: FilterState, z: AbsoluteAttitudeMeasurement | None):
-        """Checked rows of an absolute-attitude measurement: ``(z (M, 4), cov (M, 3, 3), valid (M,))``."""
+        """Checked rows of an absolute-attitude measurement:
+        ``(z (M, 4), cov (M, 3, 3), valid (M,), bad (M,))``."""
         self._check_state(state)
         M = state.n_trials
         if _missing(z, AbsoluteAttitudeMeasurement):
             return _no_measurement(M)
-        q, valid = self._measurement_rows(z.q_NT, M, 4, "q_NT")
+        q, valid, bad = self._measurement_rows(z.q_NT, M, 4, "q_NT")
         cov, cov_ok = self._cov_rows(z.cov_rotvec_T, M, "cov_rotvec_T")
-        return q, cov, valid & cov_ok & ~state.failed
+        return (q, cov, *self._usable(state, valid, bad, cov_ok))
 
     def _increment_inputs(self, state: FilterState, z: IncrementMeasurement | None):
-        """Checked rows of a Hill-frame increment, converted to N: ``(dq_N, cov_N, valid)``."""
+        """Checked rows of a Hill-frame increment, converted to N: ``(dq_N, cov_N, valid, bad)``."""
         self._check_state(state)
         if not state.has_clone:
             raise ValueError("state: no clone; call clone(state) at the earlier epoch first")
         M = state.n_trials
         if _missing(z, IncrementMeasurement):
             return _no_measurement(M)
-        dqH, valid = self._measurement_rows(z.dq_H, M, 4, "dq_H")
+        dqH, valid, bad = self._measurement_rows(z.dq_H, M, 4, "dq_H")
         cov, cov_ok = self._cov_rows(z.cov_rotvec_H, M, "cov_rotvec_H")
         Rp = as_batch(z.R_NH_prev, M, (3, 3), "R_NH_prev")
         Rn = as_batch(z.R_NH_now, M, (3, 3), "R_NH_now")
         dqN, covN = self._increment_in_N(dqH, cov, Rp, Rn, z.cov_side)
-        return dqN, covN, valid & cov_ok & ~state.failed
+        return (dqN, covN, *self._usable(state, valid, bad, cov_ok))
 
     @staticmethod
     def _increment_in_N(dq_H, cov_H, R_NH_prev, R_NH_now, cov_side):

@@ -167,18 +167,18 @@ class AttitudeEKF(AttitudeFilter):
     # ------------------------------------------------------------------ measurements
     def update_absolute(self, state: FilterState, z: AbsoluteAttitudeMeasurement | None) -> FilterState:
         """003's additive update ``z = q + v`` with ``H = [I₄ 0]`` and the UT image of the noise."""
-        zq, cov, valid = self._absolute_inputs(state, z)
+        zq, cov, valid, bad = self._absolute_inputs(state, z)
         q, w, P, qc, _ = self._sanitized(state)
         zq = np.where(np.sum(zq * q, axis=1, keepdims=True) < 0, -zq, zq)
         Lq = quaternion_left_matrices(q)
         R4 = self._complete(Lq @ self._noise_moments(cov) @ Lq.mT, q)
         G = 2.0 * xi_matrices(q).mT
         dx, Pn, acc, rej, nis = self._gated_update(P, zq - q, None, R4, valid, G=G)
-        return self._apply(state, q, w, qc, dx, Pn, acc, rej, nis)
+        return self._apply(state, q, w, qc, dx, Pn, acc, rej, nis, bad)
 
     def update_increment(self, state: FilterState, z: IncrementMeasurement | None) -> FilterState:
         """Stochastic cloning on the three rotational components of the innovation (module notes)."""
-        dqN, covN, valid = self._increment_inputs(state, z)
+        dqN, covN, valid, bad = self._increment_inputs(state, z)
         M = state.n_trials
         q, w, P, qc, _ = self._sanitized(state)
         h = quaternion_products(q, quaternion_conjugates(qc))
@@ -190,10 +190,10 @@ class AttitudeEKF(AttitudeFilter):
         G = 2.0 * quaternion_right_matrices(h)[:, :, 1:].mT
         r3 = (G @ (zq - h)[:, :, None])[:, :, 0]
         dx, Pn, acc, rej, nis = self._gated_update(P, r3, G @ H, covN, valid)
-        new = self._apply(state, q, w, qc, dx, Pn, acc, rej, nis)
+        new = self._apply(state, q, w, qc, dx, Pn, acc, rej, nis, bad)
         return self.clone(new)
 
-    def _apply(self, state, q, w, qc, dx, Pn, acc, rej, nis):
+    def _apply(self, state, q, w, qc, dx, Pn, acc, rej, nis, bad):
         qn = q + dx[:, :4]
         qn /= np.sqrt(np.sum(qn * qn, 1, keepdims=True))
         wn = w + dx[:, 4:7]
@@ -202,7 +202,7 @@ class AttitudeEKF(AttitudeFilter):
             qcn = qc + dx[:, 7:11]
             qcn /= np.sqrt(np.sum(qcn * qcn, 1, keepdims=True))
         return self._finish(state, q=qn, w=wn, P=Pn, qc=qcn, p=None, accepted=acc, rejected=rej,
-                            nis=nis)
+                            nis=nis, bad=bad)
 
     # ------------------------------------------------------------------ cloning
     def clone(self, state: FilterState) -> FilterState:

@@ -1,9 +1,22 @@
 """Typed measurements the attitude filters accept: a registered increment and an absolute attitude.
 
 Both hold one epoch of a batch of ``M`` filters: every field is either one value, shared by all
-trials, or ``M`` rows.  A row of NaN in the quaternion is a missing measurement for that trial
-(the filter only propagates it, or only re-clones for an increment); ``None`` in place of the
-whole measurement means that no trial has one this epoch.
+trials, or ``M`` rows.  ``None`` in place of the whole measurement means that no trial has one
+this epoch.
+
+What is judged where:
+
+* **At construction** (``ValueError``, the whole measurement is refused): wrong shapes, per-trial
+  fields of different lengths, an unknown ``cov_side``, and the Hill frames ``R_NH_prev``,
+  ``R_NH_now`` unless they are finite proper rotations.  These are the caller's bookkeeping, the
+  same for every trial.
+* **Per row, by the filter** (one trial's row, not the batch): a row of the quaternion that is
+  all NaN is a *missing* measurement (the filter only propagates that trial, or only re-clones
+  it for an increment; nothing is counted).  A *bad* row, that is ±inf or only partly NaN
+  components, a zero quaternion (norm ``<= 1e-6``), or a covariance that is not finite or not
+  positive definite, is not used either, but is counted in ``FilterState.n_rejected`` (without
+  counting towards ``reset_after_rejections``).  :class:`~filters.AttitudeEKF` and
+  :class:`~filters.MEKF` treat these rows identically.
 """
 
 from __future__ import annotations
@@ -45,10 +58,11 @@ class IncrementMeasurement:
     ----------
     dq_H : ndarray, shape (4,) or (M, 4)
         Scalar-first increment with ``R(dq_H) = R_HT(now) R_HT(prev)ᵀ`` (003 eq (31) in H:
-        ``ρ_H(now) = R(dq_H) ρ_H(prev)``).  NaN rows are missing measurements.
+        ``ρ_H(now) = R(dq_H) ρ_H(prev)``).  All-NaN rows are missing measurements; other
+        non-finite rows and zero quaternions are rejected by the filter (module notes).
     cov_rotvec_H : ndarray, shape (3, 3) or (M, 3, 3)
         Covariance (rad², H components) of the rotation-vector error ``v`` of the increment;
-        a trial whose covariance is not finite is treated as missing.
+        a trial whose covariance is not finite or not positive definite is rejected.
     R_NH_prev : ndarray, shape (3, 3) or (M, 3, 3)
         H→N rotation (``v_N = R_NH v_H``) at the earlier epoch, the one of the filter's clone.
     R_NH_now : ndarray, shape (3, 3) or (M, 3, 3)
@@ -93,16 +107,18 @@ class AbsoluteAttitudeMeasurement:
     Attributes
     ----------
     q_NT : ndarray, shape (4,) or (M, 4)
-        Scalar-first attitude (T to N); NaN rows are missing measurements.
+        Scalar-first attitude (T to N); all-NaN rows are missing measurements; other non-finite
+        rows and zero quaternions are rejected by the filter (module notes).
     cov_rotvec_T : ndarray, shape (3, 3) or (M, 3, 3)
-        Covariance (rad², T components) of ``e``; a trial whose covariance is not finite is
-        treated as missing.  For an attitude-angle error quoted as one number use
+        Covariance (rad², T components) of ``e``; a trial whose covariance is not finite or not
+        positive definite is rejected.  For an attitude-angle error quoted as one number use
         :func:`filters.noise_mapping.rotvec_covariance_from_angle_error`.
 
     Raises
     ------
     ValueError
-        On a wrong shape or per-trial fields of different lengths.
+        On a wrong shape or per-trial fields of different lengths (bad rows are judged per
+        trial by the filter, module notes).
     """
 
     q_NT: np.ndarray

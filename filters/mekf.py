@@ -137,15 +137,15 @@ class MEKF(AttitudeFilter):
     # ------------------------------------------------------------------ measurements
     def update_absolute(self, state: FilterState, z: AbsoluteAttitudeMeasurement | None) -> FilterState:
         """Residual ``r = log(q̂⁻¹ ⊗ z)`` with ``H = [I₃ 0 …]``."""
-        zq, cov, valid = self._absolute_inputs(state, z)
+        zq, cov, valid, bad = self._absolute_inputs(state, z)
         q, w, P, qc, p = self._sanitized(state)
         r = rotvecs_from_quaternions(quaternion_products(quaternion_conjugates(q), zq))
         dx, Pn, acc, rej, nis = self._gated_update(P, r, None, cov, valid)
-        return self._apply(state, q, w, qc, p, dx, Pn, acc, rej, nis)
+        return self._apply(state, q, w, qc, p, dx, Pn, acc, rej, nis, bad)
 
     def update_increment(self, state: FilterState, z: IncrementMeasurement | None) -> FilterState:
         """Residual ``r = log(Δq_N ⊗ (q̂ ⊗ q̂_c⁻¹)⁻¹)``, ``H = [R̂_NT 0 … −R̂_NT]`` (module notes)."""
-        dqN, covN, valid = self._increment_inputs(state, z)
+        dqN, covN, valid, bad = self._increment_inputs(state, z)
         M = state.n_trials
         q, w, P, qc, p = self._sanitized(state)
         dq_hat = quaternion_products(q, quaternion_conjugates(qc))
@@ -156,10 +156,10 @@ class MEKF(AttitudeFilter):
         H[:, :, :3] = R_hat
         H[:, :, nc:] = -R_hat
         dx, Pn, acc, rej, nis = self._gated_update(P, r, H, covN, valid)
-        new = self._apply(state, q, w, qc, p, dx, Pn, acc, rej, nis)
+        new = self._apply(state, q, w, qc, p, dx, Pn, acc, rej, nis, bad)
         return self.clone(new)
 
-    def _apply(self, state, q, w, qc, p, dx, Pn, acc, rej, nis):
+    def _apply(self, state, q, w, qc, p, dx, Pn, acc, rej, nis, bad):
         nc = self._n_core
         da = dx[:, :3]
         qn = quaternion_products(q, quaternions_from_rotvecs(da))
@@ -178,7 +178,7 @@ class MEKF(AttitudeFilter):
             G[:, nc:, nc:] -= 0.5 * cross_product_matrices(dac)
         Pn = G @ Pn @ G.mT
         return self._finish(state, q=qn, w=wn, P=Pn, qc=qcn, p=pn, accepted=acc, rejected=rej,
-                            nis=nis)
+                            nis=nis, bad=bad)
 
     # ------------------------------------------------------------------ cloning
     def clone(self, state: FilterState) -> FilterState:

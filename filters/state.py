@@ -63,9 +63,11 @@ class FilterState:
     t_clone_s : float or None
         Epoch of the clone.
     n_accepted, n_rejected : (M,) int arrays
-        Measurements used, and rejected by the chi-square gate.
+        Measurements used, and rejected: by the chi-square gate, or as bad rows (non-finite or
+        partly NaN, a zero quaternion, a covariance not finite or not positive definite; see
+        :mod:`filters.measurements`).  Missing (all-NaN) rows count in neither.
     n_consecutive_rejected : (M,) int array
-        Rejections since the last accepted measurement.
+        Gate rejections since the last accepted measurement (bad rows do not count).
     n_resets : (M,) int array
         Times the covariance was reset to ``P_reset`` after too many consecutive rejections (a
         filter whose estimate has drifted outside its own gate would otherwise reject every

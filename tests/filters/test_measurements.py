@@ -81,3 +81,69 @@ def test_updates_refuse_raw_arrays_naming_the_measurement(Filter):
         F.update_absolute(st, st.q_NT)
     with pytest.raises(ValueError, match="z: expected an IncrementMeasurement"):
         F.update_increment(F.clone(st), AbsoluteAttitudeMeasurement(st.q_NT, COV))
+
+
+# ---------------------------------------------------------------- bad rows (issue 17)
+NAN4 = [np.nan] * 4
+BAD_ROWS = {  # (quaternion row, covariance row) of trial 1; trials 0 and 2 are good
+    "inf quaternion": ([np.inf, 0, 0, 0], COV),
+    "partly NaN quaternion": ([1.0, np.nan, 0, 0], COV),
+    "zero quaternion": ([0.0, 0, 0, 0], COV),
+    "NaN covariance": ([1.0, 0, 0, 0], np.full((3, 3), np.nan)),
+    "inf covariance": ([1.0, 0, 0, 0], np.diag([np.inf, 1e-6, 1e-6])),
+    "negative-definite covariance": ([1.0, 0, 0, 0], -COV),
+    "indefinite covariance": ([1.0, 0, 0, 0], np.diag([1e-6, -1e-6, 1e-6])),
+}
+
+
+def _rows(bad_q, bad_cov):
+    q = np.array([[1.0, 0, 0, 0], bad_q, [1.0, 0, 0, 0]], dtype=float)
+    cov = np.stack([COV, np.asarray(bad_cov, float), COV])
+    return q, cov
+
+
+@pytest.mark.parametrize("case", BAD_ROWS)
+def test_both_filters_reject_and_count_the_same_bad_absolute_row_and_stay_finite(case):
+    counts = []
+    for Filter in (AttitudeEKF, MEKF):
+        F = Filter(J_kg_m2=J_KG_M2)
+        st = F.predict(_state(F), 0.1)
+        out = F.update_absolute(st, AbsoluteAttitudeMeasurement(*_rows(*BAD_ROWS[case])))
+        assert out.ok.all() and np.isfinite(out.q_NT).all() and np.isfinite(out.P).all()
+        np.testing.assert_array_equal(out.q_NT[1], st.q_NT[1])  # the bad row changed nothing
+        assert np.isnan(out.last_nis[1]) and out.n_consecutive_rejected[1] == 0
+        counts.append((out.n_accepted.tolist(), out.n_rejected.tolist()))
+    assert counts[0] == counts[1] == ([1, 0, 1], [0, 1, 0])
+
+
+@pytest.mark.parametrize("case", BAD_ROWS)
+def test_both_filters_reject_and_count_the_same_bad_increment_row_and_stay_finite(case):
+    counts = []
+    for Filter in (AttitudeEKF, MEKF):
+        F = Filter(J_kg_m2=J_KG_M2)
+        st = F.predict(F.clone(_state(F)), 0.1)
+        dq = quat_from_rotvec(st.omega_TN_T[0] * 0.1)
+        q, cov = _rows(*BAD_ROWS[case])
+        q[[0, 2]] = dq
+        out = F.update_increment(st, IncrementMeasurement(q, cov, I3, I3))
+        assert out.ok.all() and np.isfinite(out.q_NT).all() and np.isfinite(out.P).all()
+        counts.append((out.n_accepted.tolist(), out.n_rejected.tolist()))
+    assert counts[0] == counts[1] == ([1, 0, 1], [0, 1, 0])
+
+
+@pytest.mark.parametrize("Filter", [AttitudeEKF, MEKF])
+def test_an_all_nan_row_stays_missing_whatever_its_covariance(Filter):
+    F = Filter(J_kg_m2=J_KG_M2)
+    st = F.predict(_state(F), 0.1)
+    q, cov = _rows(NAN4, np.full((3, 3), np.nan))
+    out = F.update_absolute(st, AbsoluteAttitudeMeasurement(q, cov))
+    assert out.n_accepted.tolist() == [1, 0, 1] and out.n_rejected.tolist() == [0, 0, 0]
+
+
+@pytest.mark.parametrize("Filter", [AttitudeEKF, MEKF])
+def test_bad_rows_do_not_reset_the_covariance_however_many(Filter):
+    F = Filter(J_kg_m2=J_KG_M2, reset_after_rejections=2)
+    st = F.predict(_state(F), 0.1)
+    for _ in range(3):
+        st = F.update_absolute(st, AbsoluteAttitudeMeasurement(*_rows([np.inf, 0, 0, 0], COV)))
+    assert st.n_rejected[1] == 3 and st.n_resets[1] == 0
