@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import importlib
+import json
 import numbers
 import re
 import tomllib
@@ -35,6 +36,7 @@ __all__ = [
     "set_dotted",
     "shorten",
     "one_line",
+    "key_part",
     "FiniteFloat",
     "Integer",
     "Seed",
@@ -239,8 +241,7 @@ def format_validation_error(err: pydantic.ValidationError) -> str:
     characters, the line to :data:`MAX_MESSAGE_CHARS`.
     """
     first = err.errors(include_url=False)[0]
-    loc = [shorten(p) if not isinstance(p, str) or len(p) > SHOWN_CHARS else p for p in first["loc"]]
-    loc = [str(p) for p in loc]
+    loc = [key_part(p) for p in first["loc"]]
     msg = str(first["msg"])
     for prefix in _PREFIXES:
         if msg.startswith(prefix):
@@ -285,6 +286,18 @@ def read_config_text(path: Path | str) -> str:
                           f"offset {exc.start})") from None
 
 
+_PLAIN_KEY = re.compile(r"[\w-]+")
+
+
+def key_part(part: Any) -> str:
+    """One part of a dotted key as shown in messages: bare when plain (``distance_m``, ``0``), else quoted
+    (``"3 views"``) and cut to :data:`SHOWN_CHARS` characters."""
+    text = str(part)
+    if isinstance(part, int) or (len(text) <= SHOWN_CHARS and _PLAIN_KEY.fullmatch(text)):
+        return text
+    return json.dumps(text if len(text) <= SHOWN_CHARS else text[:SHOWN_CHARS - 3] + "...", ensure_ascii=False)
+
+
 def _check_shape(value: Any, where: str = "") -> None:
     """Refuse tables and arrays nested deeper than :data:`MAX_DEPTH`, long arrays, strings and keys.
 
@@ -303,7 +316,7 @@ def _check_shape(value: Any, where: str = "") -> None:
                     raise ConfigError(f"{name}: keys must be strings, got {shorten(k)}")
                 if len(k) > MAX_KEY_CHARS:
                     raise ConfigError(f"{name}: key {shorten(k)} is longer than {MAX_KEY_CHARS} characters")
-                stack.append((v, f"{at}.{k}" if at else k, depth + 1))
+                stack.append((v, f"{at}.{key_part(k)}" if at else key_part(k), depth + 1))
         elif isinstance(node, list | tuple):
             if len(node) > MAX_LIST_ITEMS:
                 raise ConfigError(f"{name}: {len(node)} items, at most {MAX_LIST_ITEMS}")

@@ -136,6 +136,8 @@ def _grid_entry(key: Any, value: Any) -> list[Any] | GridRange:
             raise ValueError(f"{key}: values must be numbers, booleans or strings, got {shorten(v)}")
         if isinstance(v, float) and not math.isfinite(v):
             raise ValueError(f"{key}: values must be finite, got {v!r}")
+    if len(set(np.asarray(list(value)).tolist())) != len(value):
+        raise ValueError(f"{key}: values are not distinct: {shorten(list(value))}")
     return list(value)
 
 

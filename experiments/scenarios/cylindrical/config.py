@@ -4,6 +4,7 @@ with 004's Table 1 and Table 2 values as printed.
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 import numpy as np
@@ -166,8 +167,8 @@ class DynamicConfig(ConfigTable):
     @field_validator("spin_axis")
     @classmethod
     def _nonzero(cls, v):
-        if np.linalg.norm(v) == 0:
-            raise ValueError("the spin axis must not be zero")
+        if not math.hypot(*v) > 1e-12:
+            raise ValueError("the spin axis must not be zero (norm above 1e-12)")
         return v
 
     @model_validator(mode="after")

@@ -17,6 +17,7 @@ An optional ``[sweep]`` table (:class:`experiments.sweep.SweepSpec`) turns the s
 from __future__ import annotations
 
 import functools
+import math
 from pathlib import Path
 from typing import Literal
 
@@ -130,7 +131,7 @@ class TargetConfig(ConfigTable):
     @classmethod
     def _unit(cls, v: list[float]) -> list[float]:
         _vec(4)(v)
-        n = float(np.linalg.norm(v))
+        n = math.hypot(*v)
         if abs(n - 1.0) > 1e-6:
             raise ValueError(f"must be a unit quaternion (norm {n:.6g})")
         return v
@@ -252,8 +253,8 @@ class ObservationConfig(ConfigTable):
     @field_validator("sun_H")
     @classmethod
     def _nonzero(cls, v: list[float]) -> list[float]:
-        if not float(np.linalg.norm(v)) > 0:
-            raise ValueError("the direction to the Sun must not be zero")
+        if not math.hypot(*v) > 1e-12:
+            raise ValueError("the direction to the Sun must not be zero (norm above 1e-12)")
         return v
 
 
