@@ -235,7 +235,7 @@ def kabsch_flat(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None) -> KabschFla
 def raise_too_large(g: float, b: int) -> None:
     """``ValueError`` for problem ``b`` whose second moment ``g`` exceeds the accepted range."""
     raise ValueError(f"P, Q: coordinates too large: Σ w (|p|² + |q|²) of problem {b} is {g:.3g} m², "
-                     f"above {MAX_SECOND_MOMENT_M2:g} m² (squares overflow; weights count too)")
+                     f"above {MAX_SECOND_MOMENT_M2:g} m² (the rotation solver would overflow; weights count)")
 
 
 def check_second_moments(P: np.ndarray, Q: np.ndarray, w: np.ndarray | None) -> None:
