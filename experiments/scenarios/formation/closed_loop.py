@@ -14,7 +14,13 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import xarray as xr
 
-from attitude.quaternion import quat_angle_between
+from attitude.quaternion import (
+    matrix_from_quat,
+    quat_angle_between,
+    quat_conjugate,
+    quat_multiply,
+    rotvec_from_quat,
+)
 from closed_loop import (
     ClosedLoopResult,
     ObserverPlan,
@@ -124,6 +130,9 @@ def _dataset(cfg: Config, tr: TumblingTarget, plan: ObserverPlan, res: ClosedLoo
     rate_err = np.degrees(np.linalg.norm(res.omega_TN_T_est_rad_s - w_T, axis=-1))
     crit = criterion(cfg)
     conv, tconv = convergence_time(t, np.deg2rad(att_err), np.deg2rad(rate_err), criterion=crit)
+    # body-frame error components (estimate to truth), the quantities the filter's sigmas describe
+    att_err_T = np.degrees(rotvec_from_quat(quat_multiply(quat_conjugate(res.q_NT_est), q_NT)))
+    rate_err_T = np.degrees(res.omega_TN_T_est_rad_s - w_T)
     ds = xr.Dataset(
         {
             "q_NT_true": (("time_s", "quat_component"), q_NT),
@@ -132,12 +141,21 @@ def _dataset(cfg: Config, tr: TumblingTarget, plan: ObserverPlan, res: ClosedLoo
             "omega_est_deg_s": (("time_s", "axis"), np.degrees(res.omega_TN_T_est_rad_s), {"units": "deg/s"}),
             "attitude_error_deg": ("time_s", att_err, {"units": "deg"}),
             "rate_error_deg_s": ("time_s", rate_err, {"units": "deg/s"}),
+            "attitude_error_T_deg": (("time_s", "axis"), att_err_T,
+                                     {"units": "deg", "long_name": "rotation vector from estimate to truth, body axes"}),
+            "rate_error_T_deg_s": (("time_s", "axis"), rate_err_T,
+                                   {"units": "deg/s", "long_name": "estimated minus true body rate, body axes"}),
+            "attitude_sigma_deg": (("time_s", "axis"), np.degrees(res.attitude_sigma_T_rad),
+                                   {"units": "deg", "long_name": "filter 1-sigma of the attitude error, body axes"}),
+            "rate_sigma_deg_s": (("time_s", "axis"), np.degrees(res.omega_sigma_T_rad_s),
+                                 {"units": "deg/s", "long_name": "filter 1-sigma of the rate error, body axes"}),
             "increment_error_deg": ("time_s", res.increment_error_deg,
                                     {"units": "deg", "long_name": "registered increment vs truth"}),
             "increment_sigma_deg": ("time_s", res.increment_sigma_deg,
                                     {"units": "deg", "long_name": "increment sigma given to the filter"}),
             "active": (("time_s", "spacecraft"), res.active),
             "r_H_m": (("spacecraft", "time_s", "axis"), plan.x_H[..., :3], {"units": "m"}),
+            "v_H_m_s": (("spacecraft", "time_s", "axis"), plan.x_H[..., 3:], {"units": "m/s", "long_name": "velocity in H (rotating frame)"}),
             "dv_m_s": ("spacecraft", plan.dv_m_s, {"units": "m/s", "long_name": "reconfiguration delta-v"}),
             "illumination": ("time_s", tr.illumination, {"units": "1"}),
             "n_tracks": ("time_s", res.n_tracks, {"units": "1"}),
@@ -178,7 +196,8 @@ def _dataset(cfg: Config, tr: TumblingTarget, plan: ObserverPlan, res: ClosedLoo
 
 
 def _snapshot_dataset(camera: PinholeCamera, target: Target, q_HT: np.ndarray, snap: Snapshot) -> xr.Dataset:
-    """One epoch's images (re-rendered noiselessly for the figure), tracks and reconstructed cloud."""
+    """One epoch's images (re-rendered noiselessly for the figure), tracks, reconstructed cloud with each
+    point's σ, and each track's true point in H (NaN for a false match)."""
     from vision.render import render
 
     imgs = []
@@ -187,6 +206,8 @@ def _snapshot_dataset(camera: PinholeCamera, target: Target, q_HT: np.ndarray, s
         imgs.append(rr.image.astype(np.uint8) if rr.image.dtype == np.uint8 else
                     np.clip(rr.image / max(1, rr.image.max()) * 255, 0, 255).astype(np.uint8))
     obs, tri = snap.frame.obs, snap.frame.tri
+    X_true_H = np.asarray(obs.X_T_true, dtype=float) @ matrix_from_quat(q_HT[snap.epoch]).T
+    sigma_m = np.sqrt(np.clip(np.trace(np.asarray(tri.cov_W, dtype=float), axis1=-2, axis2=-1), 0.0, None))
     return xr.Dataset(
         {
             "snapshot_image": (("snapshot_view", "image_y", "image_x"), np.stack(imgs)),
@@ -194,6 +215,10 @@ def _snapshot_dataset(camera: PinholeCamera, target: Target, q_HT: np.ndarray, s
             "snapshot_track_correct": ("snapshot_track", obs.feature_id >= 0),
             "snapshot_X_W_m": (("snapshot_track", "axis"), tri.X_W, {"units": "m"}),
             "snapshot_point_valid": ("snapshot_track", np.asarray(tri.valid, bool)),
+            "snapshot_X_true_H_m": (("snapshot_track", "axis"), X_true_H,
+                                    {"units": "m", "long_name": "true point of each track in H (NaN: false match)"}),
+            "snapshot_sigma_m": ("snapshot_track", sigma_m,
+                                 {"units": "m", "long_name": "sqrt(trace) of the point's triangulation covariance"}),
         },
         coords={"snapshot_view": np.asarray(snap.observers), "uv": ["u", "v"]},
     )
