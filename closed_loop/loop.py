@@ -69,6 +69,12 @@ class ClosedLoopResult:
         Estimated attitude after each epoch's update, scalar-first.
     omega_TN_T_est_rad_s : ndarray (T, 3)
         Estimated body rate, rad/s.
+    attitude_sigma_T_rad : ndarray (T, 3)
+        The filter's 1σ of its attitude error per body axis after each epoch's update, rad: square
+        roots of the diagonal of the attitude block of ``estimator.tangent_covariance`` (NaN when
+        the filter failed).
+    omega_sigma_T_rad_s : ndarray (T, 3)
+        The filter's 1σ of its body-rate error per body axis, rad/s (the rate block, likewise).
     active : ndarray (T, S) bool
         Observers used at each epoch.
     n_tracks, n_points, n_matches : ndarray (T,)
@@ -87,6 +93,8 @@ class ClosedLoopResult:
 
     q_NT_est: np.ndarray
     omega_TN_T_est_rad_s: np.ndarray
+    attitude_sigma_T_rad: np.ndarray
+    omega_sigma_T_rad_s: np.ndarray
     active: np.ndarray
     n_tracks: np.ndarray
     n_points: np.ndarray
@@ -179,6 +187,7 @@ class ClosedLoop:
         state = filt.clone(initial_state)
         q_est = np.full((T, 4), np.nan)
         w_est = np.full((T, 3), np.nan)
+        sigma = np.full((T, 6), np.nan)
         used = np.zeros((T, S), bool)
         n_tracks = np.zeros(T)
         n_points = np.zeros(T)
@@ -228,9 +237,11 @@ class ClosedLoop:
             reason[k] = INITIAL_EPOCH if k == 0 else ("" if ok[k] else why)
             q_est[k] = state.q_NT[0]
             w_est[k] = state.omega_TN_T[0]
+            sigma[k] = np.sqrt(np.clip(np.diagonal(filt.tangent_covariance(state)[0])[:6], 0.0, None))
             prev, prev_active = frame, act
             if progress:
                 progress(k + 1, T)
-        return ClosedLoopResult(q_NT_est=q_est, omega_TN_T_est_rad_s=w_est, active=used, n_tracks=n_tracks,
+        return ClosedLoopResult(q_NT_est=q_est, omega_TN_T_est_rad_s=w_est, attitude_sigma_T_rad=sigma[:, :3],
+                                omega_sigma_T_rad_s=sigma[:, 3:], active=used, n_tracks=n_tracks,
                                 n_points=n_points, n_matches=n_matches, increment_error_deg=inc_err,
                                 increment_sigma_deg=inc_sigma, ok=ok, failure_reason=reason, snapshot=snap)

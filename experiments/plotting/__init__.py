@@ -1,27 +1,55 @@
-"""Plot primitives and the generic sweep overview, drawn with matplotlib (Agg) from stored results."""
+"""Plot primitives, the house style and the generic sweep overview, drawn with matplotlib (Agg) from stored results."""
 
 from experiments.plotting.primitives import (
     axes_or_new,
+    clipped_extend,
     plot_band,
     plot_cloud,
+    plot_envelope,
     plot_histogram,
     plot_image_tracks,
     plot_map,
     plot_time_series,
     plot_timeline,
+    robust_limits,
+    shared_range,
+)
+from experiments.plotting.style import (
+    ALLOWED_CMAPS,
+    FORMATS,
+    check_format,
+    figure_path,
+    label,
+    legend_below,
+    legend_right,
+    readable_text_color,
     save,
+    shade_spans,
 )
 from experiments.plotting.sweep_overview import sweep_overview_figures
 
 __all__ = [
+    "ALLOWED_CMAPS",
+    "FORMATS",
     "axes_or_new",
+    "check_format",
+    "clipped_extend",
+    "figure_path",
+    "label",
+    "legend_below",
+    "legend_right",
     "plot_map",
     "plot_band",
+    "plot_envelope",
     "plot_time_series",
     "plot_timeline",
     "plot_image_tracks",
     "plot_cloud",
     "plot_histogram",
+    "readable_text_color",
+    "robust_limits",
     "save",
+    "shade_spans",
+    "shared_range",
     "sweep_overview_figures",
 ]

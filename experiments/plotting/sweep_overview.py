@@ -11,10 +11,10 @@ import matplotlib
 matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
-from experiments.plotting.primitives import plot_band, plot_map, save  # noqa: E402
+from experiments.plotting.primitives import plot_band, plot_map, shared_range  # noqa: E402
+from experiments.plotting.style import check_format, figure_path, save  # noqa: E402
 
 __all__ = ["sweep_overview_figures"]
 
@@ -25,12 +25,15 @@ def _label(ds: xr.Dataset, name: str) -> str:
     return f"{name} [{units}]" if units else name
 
 
-def sweep_overview_figures(ds: xr.Dataset, fig_dir: Path, *, swept: Sequence[str] | None = None) -> list[Path]:
+def sweep_overview_figures(ds: xr.Dataset, fig_dir: Path, *, swept: Sequence[str] | None = None,
+                           format: str = "png") -> list[Path]:
     """Generic sweep figures: for each metric, its trial mean over the swept parameters.
 
     One swept parameter: mean with the 10–90 % band over trials.  Two or more: a colour map over
-    the first two, one panel per value of the third (further ones at their first value).
+    the first two, one panel per value of the third (further ones at their first value), all
+    panels on one colour range with one colour bar.  ``format``: ``"png"``, ``"pdf"`` or ``"svg"``.
     """
+    check_format(format)
     swept = list(swept) if swept is not None else list(ds["done"].dims)
     keys = json.loads(ds.attrs.get("swept_keys", "[]"))
     paths: list[Path] = []
@@ -55,13 +58,13 @@ def sweep_overview_figures(ds: xr.Dataset, fig_dir: Path, *, swept: Sequence[str
             panels = list(ds[third].values) if third else [None]
             fig, axes = plt.subplots(1, len(panels), figsize=(5.0 * len(panels), 4.0), layout="constrained",
                                      squeeze=False)
-            finite = mean.values[np.isfinite(mean.values)]
-            vmin, vmax = (float(finite.min()), float(finite.max())) if finite.size else (None, None)
+            vmin, vmax = shared_range(mean.values)
             for ax, p in zip(axes[0], panels, strict=True):
                 m = mean.sel({third: p}) if third else mean
                 m = m.transpose(swept[1], swept[0])
                 plot_map(m.values, ds[swept[0]].values, ds[swept[1]].values, ax=ax, vmin=vmin, vmax=vmax,
-                         xlabel=swept[0], ylabel=swept[1], cbar_label=_label(ds, name),
+                         xlabel=swept[0], ylabel=swept[1], colorbar=False,
                          title=f"{name} (trial mean)" + (f", {third} = {p}" if third else ""))
-        paths.append(save(fig, fig_dir / f"sweep_{name}.png"))
+            fig.colorbar(axes[0, 0].collections[0], ax=axes[0].tolist(), label=_label(ds, name))
+        paths.append(save(fig, figure_path(fig_dir, f"sweep_{name}", format)))
     return paths

@@ -92,16 +92,17 @@ def run(cfg: Config, *, progress: Callable[[int, int], None] | None = None) -> S
     return ScenarioResult(dataset=ds, summary={"study": cfg.study, **summary})
 
 
-def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
-    """Figures of a stored ``coobs run`` of this kind (drawn from the dataset only)."""
+def plot(dataset: xr.Dataset, fig_dir: Path, *, format: str = "png") -> list[Path]:
+    """Figures of a stored ``coobs run`` of this kind (drawn from the dataset only), as ``format``
+    (``"png"``, ``"pdf"`` or ``"svg"``)."""
     from experiments.scenarios.formation import figures
 
     drawers = {"ekf": figures.ekf_figures, "error_map": figures.error_map_run_figures}
-    return drawers.get(dataset.attrs.get("study"), figures.closed_loop_figures)(dataset, fig_dir)
+    return drawers.get(dataset.attrs.get("study"), figures.closed_loop_figures)(dataset, fig_dir, format=format)
 
 
-def plot_sweep(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
-    """Figures of a stored sweep of this kind (error maps with the CRLB map, convergence maps)."""
+def plot_sweep(dataset: xr.Dataset, fig_dir: Path, *, format: str = "png") -> list[Path]:
+    """Figures of a stored sweep of this kind (error maps with the CRLB map, convergence maps), as ``format``."""
     from experiments.scenarios.formation.figures import sweep_figures
 
-    return sweep_figures(dataset, fig_dir)
+    return sweep_figures(dataset, fig_dir, format=format)
