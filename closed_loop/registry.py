@@ -27,6 +27,8 @@ class Registry(Mapping[str, T], Generic[T]):
     entries : mapping of str to factory
         Name → class (or function) that builds the part.
 
+    Notes
+    -----
     Looking up an unknown name raises :class:`UnknownPartError` (a ``KeyError``) whose message is
     one line: ``unknown registrar 'foo'; known: kabsch, ml, ransac``.
     """

@@ -64,8 +64,12 @@ __all__ = [
 AU_M = 149_597_870_700.0
 #: Solar radius (IAU 2015 nominal), m.
 R_SUN_M = 6.957e8
-#: :func:`shadow_region` codes.
-SUNLIT, PENUMBRA, UMBRA = 0, 1, 2
+#: :func:`shadow_region` code: the Sun's disc wholly visible.
+SUNLIT = 0
+#: :func:`shadow_region` code: the Sun's disc partly hidden by the Earth.
+PENUMBRA = 1
+#: :func:`shadow_region` code: the Sun's disc wholly hidden by the Earth.
+UMBRA = 2
 
 _J2000 = np.datetime64("2000-01-01T12:00:00", "us")
 _ARCSEC = np.pi / (180.0 * 3600.0)
