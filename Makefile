@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.coobs-installed
 OUT ?= runs
 
-.PHONY: demo test bench lint syslibs install clean
+.PHONY: demo test bench lint docs syslibs install clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -48,9 +48,14 @@ test: install
 bench: install
 	$(BIN)/coobs bench --out bench.json
 
+# The documentation site, built offline into site/ (open site/index.html); --strict turns every
+# warning (a broken link or anchor, a griffe docstring warning) into a failure.
+docs: install
+	NO_MKDOCS_2_WARNING=1 DISABLE_MKDOCS_2_WARNING=true MPLBACKEND=Agg $(BIN)/mkdocs build --strict
+
 lint: install
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
 
 clean:
-	rm -rf $(VENV) $(OUT) bench.json
+	rm -rf $(VENV) $(OUT) bench.json site
