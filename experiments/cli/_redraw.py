@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import xarray as xr
@@ -13,8 +14,9 @@ from experiments.sweep import redraw as redraw_sweep_store
 __all__ = ["redraw_run", "redraw_sweep"]
 
 
-def redraw_run(out: Path) -> list[Path]:
-    """Redraw the figures of a stored run from ``out/result.nc`` into ``out/figures``.
+def redraw_run(out: Path, *, format: str = "png") -> list[Path]:
+    """Redraw the figures of a stored run from ``out/result.nc`` into ``out/figures`` as ``format``
+    (``"png"``, ``"pdf"`` or ``"svg"``).
 
     Raises
     ------
@@ -28,11 +30,11 @@ def redraw_run(out: Path) -> list[Path]:
     module = kind_module(kind)
     fig_dir = out / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
-    return list(module.plot(ds, fig_dir))
+    return list(module.plot(ds, fig_dir, format=format))
 
 
-def redraw_sweep(out: Path) -> list[Path]:
-    """Redraw the figures of a stored sweep into ``out/figures``.
+def redraw_sweep(out: Path, *, format: str = "png") -> list[Path]:
+    """Redraw the figures of a stored sweep into ``out/figures`` as ``format``.
 
     Uses the scenario kind's ``plot_sweep(dataset, fig_dir)`` when the sweep came from a config
     whose kind defines one, else a generic map of every per-trial metric's trial mean.
@@ -40,4 +42,8 @@ def redraw_sweep(out: Path) -> list[Path]:
     with xr.open_zarr(Path(out) / STORE_NAME, consolidated=False) as ds:
         kind = ds.attrs.get("kind")
     plot_sweep = getattr(kind_module(kind), "plot_sweep", None) if kind else None
-    return redraw_sweep_store(out, plot_sweep)
+    if plot_sweep is None:
+        from experiments.plotting import sweep_overview_figures
+
+        plot_sweep = sweep_overview_figures
+    return redraw_sweep_store(out, functools.partial(plot_sweep, format=format))

@@ -159,36 +159,34 @@ def _study_robust(trials, seed):
 # ----------------------------------------------------------------------------- figures
 
 def _plot_runs(results, figs: Path, stem: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from experiments.plotting import legend_below, save
+
     keys = [k for k in results if "spec_Q" in k]
-    fig, axes = plt.subplots(2, len(keys), figsize=(4 * len(keys), 6), sharex=True, squeeze=False)
+    fig, axes = plt.subplots(2, len(keys), figsize=(4 * len(keys), 6.4), sharex=True, squeeze=False,
+                             layout="constrained")
     for j, key in enumerate(keys):
         r = results[key]
         for i in range(min(10, r.n_trials)):  # 10 typical runs, as 003 Figs 9–10
             axes[0, j].semilogy(r.t_s, np.rad2deg(r.attitude_error_rad[i]), lw=0.7)
             axes[1, j].semilogy(r.t_s, np.rad2deg(r.rate_error_rad_s[i]), lw=0.7)
-        axes[0, j].axhline(r.criterion.attitude_deg, color="k", ls="--", lw=0.8)
+        axes[0, j].axhline(r.criterion.attitude_deg, color="k", ls="--", lw=0.8, label="convergence threshold")
         axes[1, j].axhline(r.criterion.rate_deg_s, color="k", ls="--", lw=0.8)
         axes[0, j].set_title(key.replace(" spec_Q", ""), fontsize=9)
-        axes[1, j].set_xlabel("t (s)")
-    axes[0, 0].set_ylabel("attitude error (deg)")
-    axes[1, 0].set_ylabel("rate error (deg/s)")
-    fig.tight_layout()
-    fig.savefig(figs / f"{stem}.png", dpi=110)
-    plt.close(fig)
+        axes[1, j].set_xlabel("time [s]")
+    axes[0, 0].set_ylabel("attitude error [deg]")
+    axes[1, 0].set_ylabel("rate error [deg/s]")
+    legend_below(fig)
+    save(fig, figs / f"{stem}.png", dpi=110)
 
 
 def _plot_nees(results, figs: Path, stem: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4))
+    from experiments.plotting import legend_right, save
+
+    fig, ax = plt.subplots(figsize=(8, 4), layout="constrained")
     band = None
     for key, r in results.items():
         ax.plot(r.t_s, r.mean_nees(), lw=0.8, label=key)
@@ -196,32 +194,27 @@ def _plot_nees(results, figs: Path, stem: str) -> None:
     if band is not None:
         ax.axhspan(*band, color="0.85", zorder=0, label="95 % band")
     ax.set_yscale("log")
-    ax.set_xlabel("t (s)")
+    ax.set_xlabel("time [s]")
     ax.set_ylabel("average NEES (6 dof)")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(figs / f"{stem}.png", dpi=110)
-    plt.close(fig)
+    legend_right(ax)
+    save(fig, figs / f"{stem}.png", dpi=110)
 
 
 def _plot_ratios(hist, figs: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.5), sharex=True)
+    from experiments.plotting import legend_below, save
+
+    fig, axes = plt.subplots(1, 2, figsize=(9, 4.0), sharex=True, layout="constrained")
     for key, r in hist.items():
         for k in range(2):
             axes[k].plot(r.t_s, np.median(r.inertia_ratios_est[:, :, k], 0), lw=0.9, label=key)
     for k, name in enumerate(("J_yy/J_xx", "J_zz/J_xx")):
-        axes[k].axhline(RATIOS_TRUE[k], color="k", ls="--", lw=0.8)
+        axes[k].axhline(RATIOS_TRUE[k], color="k", ls="--", lw=0.8, label="true ratio")
         axes[k].set_title(f"{name} (median of runs)", fontsize=9)
-        axes[k].set_xlabel("t (s)")
-    axes[0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(figs / "inertia_ratios.png", dpi=110)
-    plt.close(fig)
+        axes[k].set_xlabel("time [s]")
+    legend_below(fig, ncol=3)
+    save(fig, figs / "inertia_ratios.png", dpi=110)
 
 
 # ----------------------------------------------------------------------------- driver

@@ -22,7 +22,7 @@ import numpy as np  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from experiments.plotting import axes_or_new, save  # noqa: E402
+from experiments.plotting import axes_or_new, figure_path, legend_right, save  # noqa: E402
 
 __all__ = [
     "CwErrorGrowth",
@@ -87,10 +87,10 @@ def plot_cw_error_vs_time(t_orbits: np.ndarray, semi_major_m: np.ndarray, error_
         ax.semilogy(t_orbits[1:], error_m[k, 1:], color=cmap(k / max(len(semi_major_m) - 1, 1)),
                     label=f"{s:g} m")
     if threshold_m is not None:
-        ax.axhline(threshold_m, color="k", ls="--", lw=0.8)
-    ax.set_xlabel("time (chief orbits)")
-    ax.set_ylabel("CW position error (m)")
-    ax.legend(title="NMC semi-axis", fontsize=7, title_fontsize=7)
+        ax.axhline(threshold_m, color="k", ls="--", lw=0.8, label=f"{100 * threshold_m:g} cm")
+    ax.set_xlabel("time [orbits]")
+    ax.set_ylabel("CW position error [m]")
+    legend_right(ax, title="NMC semi-axis")
     ax.grid(True, which="both", alpha=0.3)
     return ax
 
@@ -102,10 +102,10 @@ def plot_cw_error_vs_separation(semi_major_m: np.ndarray, errors_m: Sequence[np.
     for e, lab in zip(errors_m, labels, strict=True):
         ax.loglog(semi_major_m, e, "o-", ms=3, label=lab)
     if threshold_m is not None:
-        ax.axhline(threshold_m, color="k", ls="--", lw=0.8)
-    ax.set_xlabel("NMC along-track semi-axis (m)")
-    ax.set_ylabel("max CW position error (m)")
-    ax.legend(fontsize=7)
+        ax.axhline(threshold_m, color="k", ls="--", lw=0.8, label=f"{100 * threshold_m:g} cm")
+    ax.set_xlabel("NMC along-track semi-axis [m]")
+    ax.set_ylabel("max CW position error [m]")
+    legend_right(ax)
     ax.grid(True, which="both", alpha=0.3)
     return ax
 
@@ -114,7 +114,7 @@ def plot_relative_trajectory(r_H: np.ndarray, *, ax: Axes | None = None, axes: t
                              label: str | None = None) -> Axes:
     """Relative trajectory in H projected on two axes (default along-track y vs radial x), m."""
     ax = axes_or_new(ax)
-    names = ("x radial (m)", "y along-track (m)", "z cross-track (m)")
+    names = ("x radial [m]", "y along-track [m]", "z cross-track [m]")
     ax.plot(r_H[..., axes[0]], r_H[..., axes[1]], label=label)
     ax.set_xlabel(names[axes[0]])
     ax.set_ylabel(names[axes[1]])
@@ -124,7 +124,7 @@ def plot_relative_trajectory(r_H: np.ndarray, *, ax: Axes | None = None, axes: t
 
 def cw_error_growth_figure(data: CwErrorGrowth, *, threshold_m: float = 0.02) -> Figure:
     """Two panels: error vs time per size, and error vs size after 1, 2 and 5 orbits."""
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10.0, 4.0), layout="constrained")
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12.0, 4.0), layout="constrained")
     plot_cw_error_vs_time(data.t_orbits, data.semi_major_m, data.error_m, ax=a1, threshold_m=threshold_m)
     picks = [o for o in (1.0, 2.0, 5.0) if o <= data.t_orbits[-1] + 1e-9]
     idx = [int(np.argmin(np.abs(data.t_orbits - o))) for o in picks]
@@ -135,6 +135,8 @@ def cw_error_growth_figure(data: CwErrorGrowth, *, threshold_m: float = 0.02) ->
     return fig
 
 
-def draw_orbit_figures(out_dir: Path) -> list[Path]:
-    """Compute the CW error-growth study and write its docs figure, ``out_dir/cw_error_growth.png``."""
-    return [save(cw_error_growth_figure(cw_error_growth_data()), Path(out_dir) / "cw_error_growth.png", dpi=120)]
+def draw_orbit_figures(out_dir: Path, *, format: str = "png") -> list[Path]:
+    """Compute the CW error-growth study and write its docs figure, ``out_dir/cw_error_growth.<format>``
+    (``format``: ``"png"``, ``"pdf"`` or ``"svg"``)."""
+    path = figure_path(Path(out_dir), "cw_error_growth", format)
+    return [save(cw_error_growth_figure(cw_error_growth_data()), path, dpi=120)]

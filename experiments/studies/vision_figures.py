@@ -24,7 +24,7 @@ from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.patches import ConnectionPatch  # noqa: E402
 
-from experiments.plotting import save  # noqa: E402
+from experiments.plotting import figure_path, save  # noqa: E402
 
 __all__ = ["ThreeViewData", "plot_matched_views", "plot_view", "three_view_data", "three_view_figure",
            "draw_vision_figures"]
@@ -138,6 +138,8 @@ def three_view_figure(data: ThreeViewData) -> Figure:
     return fig
 
 
-def draw_vision_figures(out_dir: Path) -> list[Path]:
-    """Render and match the three-view scene and write its docs figure, ``out_dir/vision_three_views.png``."""
-    return [save(three_view_figure(three_view_data()), Path(out_dir) / "vision_three_views.png", dpi=110)]
+def draw_vision_figures(out_dir: Path, *, format: str = "png") -> list[Path]:
+    """Render and match the three-view scene and write its docs figure, ``out_dir/vision_three_views.<format>``
+    (``format``: ``"png"``, ``"pdf"`` or ``"svg"``)."""
+    path = figure_path(Path(out_dir), "vision_three_views", format)
+    return [save(three_view_figure(three_view_data()), path, dpi=110)]

@@ -10,19 +10,26 @@ import xarray as xr
 __all__ = ["plot"]
 
 
-def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
-    """Figures from the stored dataset: Table 1 errors, Table 2 errors, and the dynamic test."""
+def plot(dataset: xr.Dataset, fig_dir: Path, *, format: str = "png") -> list[Path]:
+    """Figures from the stored dataset: Table 1 errors, Table 2 errors, and the dynamic test.
+
+    ``format``: ``"png"``, ``"pdf"`` or ``"svg"``.  Legends sit below the panels, never over data.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from experiments.plotting import check_format, figure_path, legend_below, save
+
+    check_format(format)
 
     fig_dir = Path(fig_dir)
     fig_dir.mkdir(parents=True, exist_ok=True)
     out = []
     ds = dataset
 
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = plt.subplots(figsize=(7, 4.6), layout="constrained")
     n = ds.sizes["point"]
     x = np.arange(n)
     for k, axis in enumerate(["x", "y", "z"]):
@@ -33,41 +40,35 @@ def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
     ax.axhline(0.5, color="r", ls=":", lw=1, label="0.5 mm claim")
     ax.set_xticks(x, [str(i + 1) for i in x])
     ax.set_xlabel("test point")
-    ax.set_ylabel("error (mm)")
+    ax.set_ylabel("error [mm]")
     ax.set_title("004 Table 1 analogue: 3-D point error")
-    ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    p = fig_dir / "table1_point_errors.png"
-    fig.savefig(p, dpi=120)
-    plt.close(fig)
-    out.append(p)
+    legend_below(fig, ncol=3)
+    out.append(save(fig, figure_path(fig_dir, "table1_point_errors", format), dpi=120))
 
-    fig, axes = plt.subplots(1, 3, figsize=(10, 3.6), sharey=True)
+    fig, axes = plt.subplots(1, 3, figsize=(10, 4.0), sharey=True, layout="constrained")
     err = ds["attitude_error_deg"]
     poses = ds["pose"].values
     for k, name in enumerate(["yaw", "roll", "pitch"]):
         ax = axes[k]
         e = err.sel(angle=name).values
         for j, pose in enumerate(poses):
-            ax.plot(np.full(e.shape[0], pose), e[:, j], ".", color="C0", alpha=0.4)
+            ax.plot(np.full(e.shape[0], pose), e[:, j], ".", color="C0", alpha=0.4,
+                    label="noise trials" if j == 0 else None)
         if "paper_attitude_error_deg" in ds:
             ax.plot(poses, ds["paper_attitude_error_deg"].sel(angle=name), "k^", label="paper Table 2")
         lim = {"yaw": 0.20, "roll": 0.12, "pitch": 0.23}[name]
-        ax.axhline(lim, color="r", ls=":", lw=1)
+        ax.axhline(lim, color="r", ls=":", lw=1, label="paper maximum")
         ax.axhline(-lim, color="r", ls=":", lw=1)
         ax.set_title(f"{name} error")
         ax.set_xlabel("pose")
-    axes[0].set_ylabel("deg")
-    axes[0].legend(fontsize=7)
-    fig.suptitle("004 Table 2 analogue (dots: noise trials; dotted: paper maxima)")
-    fig.tight_layout()
-    p = fig_dir / "table2_attitude_errors.png"
-    fig.savefig(p, dpi=120)
-    plt.close(fig)
-    out.append(p)
+    axes[0].set_ylabel("attitude error [deg]")
+    fig.suptitle("004 Table 2 analogue")
+    legend_below(fig, handles=axes[0].get_legend_handles_labels()[0], labels=axes[0].get_legend_handles_labels()[1],
+                 ncol=3)
+    out.append(save(fig, figure_path(fig_dir, "table2_attitude_errors", format), dpi=120))
 
     if "dyn_uv_true_px" in ds:
-        fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+        fig, axes = plt.subplots(2, 1, figsize=(8, 6.4), sharex=True, layout="constrained")
         t = ds["time_s"].values
         for k, tgt in enumerate(ds["target"].values):
             axes[0].plot(t, ds["dyn_uv_true_px"].sel(target=tgt, camera=1, channel="u"), color=f"C{k}",
@@ -76,15 +77,11 @@ def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
         bad = ds["dyn_identity_ok"].values == 0
         if np.any(bad):
             axes[1].plot(t[bad], np.zeros(bad.sum()), "rx", label="identity swap")
-        axes[0].set_ylabel("camera 1, CCD1 u (px)")
-        axes[0].legend(fontsize=7)
+        axes[0].set_ylabel("camera 1, CCD1 u [px]")
         axes[0].set_title("dynamic test: spots cross, identities kept by Kalman-predicted association")
-        axes[1].set_ylabel("track error (mm)")
-        axes[1].set_xlabel("time (s)")
+        axes[1].set_ylabel("track error [mm]")
+        axes[1].set_xlabel("time [s]")
         axes[1].set_yscale("log")
-        fig.tight_layout()
-        p = fig_dir / "dynamic_tracking.png"
-        fig.savefig(p, dpi=120)
-        plt.close(fig)
-        out.append(p)
+        legend_below(fig, ncol=6)
+        out.append(save(fig, figure_path(fig_dir, "dynamic_tracking", format), dpi=120))
     return out

@@ -40,6 +40,7 @@ __all__ = [
     "SelectionCase",
     "ZOOM_BOX_M",
     "exclusion_categories",
+    "draw_formation_figures",
     "formation_3d_figure",
     "formation_figure_data",
     "frustum_corners_H",
@@ -356,9 +357,9 @@ def plot_formation_3d(r_coast_H: ArrayLike, *, transfer_H: ArrayLike | None = No
         ax.set_ylim(*box[1])
         ax.set_zlim(*box[2])
         ax.set_box_aspect(tuple(box[:, 1] - box[:, 0]), zoom=0.9)
-    ax.set_xlabel("x radial (m)")
-    ax.set_ylabel("y along-track (m)")
-    ax.set_zlabel("z orbit normal (m)")
+    ax.set_xlabel("x radial [m]")
+    ax.set_ylabel("y along-track [m]")
+    ax.set_zlabel("z orbit normal [m]")
     if legend:
         ax.legend(fontsize=7, loc="upper left")
     return ax
@@ -388,7 +389,7 @@ def plot_selection_timeline(t_s: ArrayLike, category: ArrayLike, *, names: Seque
     for m in marks_s:
         ax.axvline(m / scale, color="k", lw=1.0, ls="--")
     ax.set_xlim(edges[0], edges[-1])
-    ax.set_xlabel(f"time ({unit})")
+    ax.set_xlabel(f"time [{unit}]")
     if title:
         ax.set_title(title, fontsize=9, loc="left")
     return ax
@@ -410,14 +411,14 @@ def plot_feasible_count(t_s: ArrayLike, n_feasible: ArrayLike, *, score_rad: Arr
     for m in marks_s:
         ax.axvline(m / scale, color="k", lw=1.0, ls="--")
     ax.set_xlim(t[0] / scale, (t[-1] + (t[-1] - t[-2] if t.size > 1 else 1.0)) / scale)
-    ax.set_xlabel(f"time ({unit})")
+    ax.set_xlabel(f"time [{unit}]")
     out = ax
     if score_rad is not None:
         s = np.degrees(np.asarray(score_rad, dtype=float)) * 1e3
         tw = ax.twinx()
         fin = s[np.isfinite(s)]
         tw.plot(t / scale, np.where(np.isfinite(s), s, np.nan), color="#1b7837", lw=1.2)
-        tw.set_ylabel("active set's\nCRLB (mdeg)", fontsize=8, color="#1b7837")
+        tw.set_ylabel("active set's\nCRLB [mdeg]", fontsize=8, color="#1b7837")
         if fin.size:
             tw.set_ylim(0, 1.2 * fin.max())
         else:
@@ -437,7 +438,9 @@ def formation_3d_figure(data: FormationFigureData) -> Figure:
     common = dict(transfer_H=data.transfer_H, hold_H=data.hold_H, impulse_r_H=data.impulse_r_H,
                   impulse_dv_H=data.impulse_dv_H, keep_out_radius_m=data.keep_out_radius_m,
                   target_radius_m=data.target_radius_m)
-    plot_formation_3d(data.r_coast_H, ax=a1, dv_scale_m_per_m_s=1000.0, **common)
+    plot_formation_3d(data.r_coast_H, ax=a1, dv_scale_m_per_m_s=1000.0, legend=False, **common)
+    h, lab = a1.get_legend_handles_labels()
+    fig.legend(h, lab, loc="outside lower center", ncol=min(len(h), 6), fontsize=7, frameon=False)
     a1.set_title("one orbit in H (axes not to scale)", fontsize=10)
     a1.view_init(elev=25, azim=-60)
     still = np.setdiff1d(np.arange(data.r_coast_H.shape[0]), data.movers)
@@ -447,7 +450,8 @@ def formation_3d_figure(data: FormationFigureData) -> Figure:
     keep = {"planned transfer", "after arrival", "slots", "active observers"}
     h, lab = a2.get_legend_handles_labels()
     a2.legend([x for x, y in zip(h, lab, strict=True) if y in keep or y.startswith("impulses")],
-              [y for y in lab if y in keep or y.startswith("impulses")], fontsize=7, loc="upper left")
+              [y for y in lab if y in keep or y.startswith("impulses")], fontsize=7, loc="upper left",
+              bbox_to_anchor=(0.0, 1.0), frameon=False)
     a2.set_title(f"about the target; observers {', '.join(f'SC{i}' for i in data.camera_ids)} with frusta "
                  f"at t = {data.snapshot_s / data.period_s:.2f} orbit", fontsize=10)
     a2.view_init(elev=20, azim=-35)
@@ -484,17 +488,25 @@ def selection_timeline_figure(data: FormationFigureData, *, k: int = 3) -> Figur
     return fig
 
 
+def draw_formation_figures(out_dir: Path, data: FormationFigureData, *, format: str = "png") -> list[Path]:
+    """Write ``formation_3d`` and ``formation_selection_timeline`` into ``out_dir`` as ``format``
+    (``"png"``, ``"pdf"`` or ``"svg"``); returns the paths."""
+    from experiments.plotting import figure_path, save
+
+    return [save(formation_3d_figure(data), figure_path(out_dir, "formation_3d", format), dpi=110),
+            save(selection_timeline_figure(data), figure_path(out_dir, "formation_selection_timeline", format),
+                 dpi=110)]
+
+
 def main(argv: list[str] | None = None) -> None:  # pragma: no cover - documented script
-    """Draw the docs figures into ``argv[0]`` (default ``docs/figures``) and print their numbers."""
+    """Draw the docs figures into ``argv[0]`` (default ``docs/figures``) as ``argv[1]`` (default ``png``)
+    and print their numbers."""
     args = sys.argv[1:] if argv is None else argv
     out = Path(args[0] if args else "docs/figures")
     out.mkdir(parents=True, exist_ok=True)
     data = formation_figure_data()
-    for name, fig in (("formation_3d.png", formation_3d_figure(data)),
-                      ("formation_selection_timeline.png", selection_timeline_figure(data))):
-        fig.savefig(out / name, dpi=110)
-        plt.close(fig)
-        print(f"wrote {out / name}")
+    for path in draw_formation_figures(out, data, format=args[1] if len(args) > 1 else "png"):
+        print(f"wrote {path}")
     for variant, summary in data.plan_summary.items():
         print(variant, {k: (round(v, 6) if isinstance(v, float) else v) for k, v in summary.items()})
     for case in data.cases:

@@ -10,14 +10,19 @@ import xarray as xr
 __all__ = ["plot"]
 
 
-def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
-    """Figures like 001 Figs 1–2 (position and attitude errors), the comparison and the switching."""
+def plot(dataset: xr.Dataset, fig_dir: Path, *, format: str = "png") -> list[Path]:
+    """Figures like 001 Figs 1–2 (position and attitude errors), the comparison and the switching.
+
+    ``format``: ``"png"``, ``"pdf"`` or ``"svg"``.  Legends sit below the panels, never over data.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from experiments.plotting import save
+    from experiments.plotting import check_format, figure_path, legend_below, save
+
+    check_format(format)
 
     ds = dataset
     t = ds["time_s"].values
@@ -29,7 +34,7 @@ def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
         ax.plot(t, y_ns, color="tab:orange", lw=0.8, label="non-switching (set 0)")
         ax.plot(t, y_sw, color="tab:blue", lw=0.6, label="switching")
         if t_fail is not None:
-            ax.axvline(t_fail, color="k", ls="--", lw=0.8)
+            ax.axvline(t_fail, color="k", ls="--", lw=0.8, label="non-switching solver fails")
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
         return ax
@@ -40,22 +45,22 @@ def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
                           ("along-track / LOS (paper X) [m]", "radial [m]", "cross-track [m]"), strict=True):
         e = ds["position_error_H"].sel(hill_axis=a)
         _series(ax, e.sel(solver="switching").values, e.sel(solver="non_switching").values, lab)
-    axes[0].legend(loc="upper right", fontsize=8)
+    legend_below(fig, ncol=3)
     axes[0].set_title("001 Fig 1: position error, chaser Hill frame"
                       + (f"; non-switching fails at {t_fail:.0f} s" if t_fail is not None else ""), fontsize=10)
-    axes[-1].set_xlabel("t [s]")
-    paths.append(save(fig, fig_dir / "fig1_position_error.png"))
+    axes[-1].set_xlabel("time [s]")
+    paths.append(save(fig, figure_path(fig_dir, "fig1_position_error", format)))
 
     # Fig 2: attitude error, 3-2-1 Euler angles of R_CT
     fig, axes = plt.subplots(3, 1, figsize=(7.0, 7.0), sharex=True, layout="constrained")
     for ax, e in zip(axes, ("yaw", "pitch", "roll"), strict=True):
         v = ds["attitude_error_euler"].sel(euler=e)
         _series(ax, v.sel(solver="switching").values, v.sel(solver="non_switching").values, f"{e} [deg]")
-    axes[0].legend(loc="upper right", fontsize=8)
+    legend_below(fig, ncol=3)
     axes[0].set_title("001 Fig 2: attitude error, 3-2-1 Euler angles of R_CT (the two solvers agree until"
                       " the failure)", fontsize=10)
-    axes[-1].set_xlabel("t [s]")
-    paths.append(save(fig, fig_dir / "fig2_attitude_error.png"))
+    axes[-1].set_xlabel("time [s]")
+    paths.append(save(fig, figure_path(fig_dir, "fig2_attitude_error", format)))
 
     # Fig 3: the relative rotation angle and the active Gibbs parameter set
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.0, 4.5), sharex=True, layout="constrained")
@@ -64,13 +69,13 @@ def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
     if np.isfinite(ds.attrs.get("crossing_time_s", np.nan)):
         a1.axvline(ds.attrs["crossing_time_s"], color="tab:red", ls="--", lw=0.8,
                    label=f"180° at {ds.attrs['crossing_time_s']:.2f} s")
-        a1.legend(fontsize=8)
+        a1.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
     a1.set_ylabel("angle of R_CT [deg]")
     a2.step(t, ds["gibbs_set"].sel(variant="switching").values, where="post", lw=0.8)
     a2.set_yticks([0, 1, 2, 3])
     a2.set_ylabel("Gibbs set i")
-    a2.set_xlabel("t [s]")
-    paths.append(save(fig, fig_dir / "fig3_rotation_and_switching.png"))
+    a2.set_xlabel("time [s]")
+    paths.append(save(fig, figure_path(fig_dir, "fig3_rotation_and_switching", format)))
 
     # Fig 4: accuracy and time of the solvers on the same frames
     solvers = [s for s in ds["solver"].values if not np.all(ds["failure_reason"].sel(solver=s).values == "disabled")]
@@ -90,5 +95,5 @@ def plot(dataset: xr.Dataset, fig_dir: Path) -> list[Path]:
     for ax in axes:
         ax.set_xticks(range(len(solvers)), solvers, rotation=30, ha="right", fontsize=8)
         ax.grid(axis="y", alpha=0.3)
-    paths.append(save(fig, fig_dir / "fig4_solver_comparison.png"))
+    paths.append(save(fig, figure_path(fig_dir, "fig4_solver_comparison", format)))
     return paths
