@@ -17,8 +17,11 @@ from experiments.sweep import STORE_NAME
 __all__ = ["plot"]
 
 
-def plot(out: Path = typer.Argument(..., help="A directory written by 'coobs run' or 'coobs sweep'.")) -> None:
+def plot(out: Path = typer.Argument(..., help="A directory written by 'coobs run' or 'coobs sweep'."),
+         fmt: str = typer.Option("png", "--format", help="Figure file format: png, pdf or svg.")) -> None:
     """Redraw the figures of a stored run or sweep from its result files."""
+    if fmt not in ("png", "pdf", "svg"):
+        raise fail(f"format: must be one of png, pdf, svg, got {fmt!r}")
     shown = repr(str(out)) if len(str(out)) <= 58 else repr(str(out)[:55]) + "..."
     try:
         is_run = (out / "result.nc").is_file()
@@ -28,7 +31,7 @@ def plot(out: Path = typer.Argument(..., help="A directory written by 'coobs run
     if not is_run and not is_sweep:
         raise fail(f"out: no result.nc or {STORE_NAME} in {shown}")
     try:
-        figures = redraw_run(out) if is_run else redraw_sweep(out)
+        figures = redraw_run(out, format=fmt) if is_run else redraw_sweep(out, format=fmt)
     except ConfigError as exc:
         raise fail(str(exc)) from None
     except (OSError, ValueError, KeyError) as exc:
