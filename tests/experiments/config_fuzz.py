@@ -10,6 +10,8 @@ naming a key, or accept a config holding no non-finite float.
 Run as a script for the counts per mutation kind::
 
     python -m tests.experiments.config_fuzz --n 1000 --seed 0
+
+It also times the refusal of a 10 000-value (and a 100 000-value) sweep grid.
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ import numpy as np
 
 from experiments.config import MAX_MESSAGE_CHARS, ConfigError, load_config
 
-__all__ = ["Case", "MUTATIONS", "OUTCOMES", "SHIPPED", "generate", "outcome", "to_toml", "nonfinite_paths", "main"]
+__all__ = ["Case", "MUTATIONS", "OUTCOMES", "SHIPPED", "generate", "outcome", "to_toml", "nonfinite_paths", "grid_refusal_s",
+           "main"]
 
 #: the shipped configs every case starts from
 SHIPPED = sorted((Path(__file__).resolve().parents[2] / "experiments" / "configs").glob("*.toml"))
@@ -324,6 +327,18 @@ def outcome(case: Case, workdir: Path) -> tuple[str, str]:
     return ("nonfinite", ", ".join(bad)[:300]) if bad else ("accepted", "")
 
 
+def grid_refusal_s(n_values: int = 10_000, origin: str = "003_fig5_fig6.toml") -> tuple[float, str]:
+    """Seconds :func:`load_config` takes to refuse ``origin`` with ``n_values`` distances swept, and its message."""
+    table = tomllib.loads((SHIPPED[0].parent / origin).read_text())
+    table["sweep"]["grid"]["formation.distance_m"] = [0.1 * i for i in range(1, n_values + 1)]
+    t0 = time.perf_counter()
+    try:
+        load_config(table)
+    except ConfigError as exc:
+        return time.perf_counter() - t0, str(exc)
+    return time.perf_counter() - t0, "accepted"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print the outcome counts per mutation kind; exit 1 on any traceback, non-finite or bad message."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -348,6 +363,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{kind:16s} " + " ".join(f"{counts[kind][o]:11d}" for o in OUTCOMES))
     print(f"{'total':16s} " + " ".join(f"{total[o]:11d}" for o in OUTCOMES))
     print(f"{args.n} cases, seed {args.seed}, {wall_s:.1f} s")
+    load_config(SHIPPED[0])  # the kinds imported before timing
+    for n_values in (10_000, 100_000):
+        grid_s, msg = grid_refusal_s(n_values)
+        print(f"a {n_values}-value grid refused in {grid_s:.3f} s: {msg}")
     for what, lines in failures.items():
         for line in lines[:args.show]:
             print(f"{what}: {line}")
