@@ -177,7 +177,7 @@ duration_s = 6.0
     assert np.nanmedian(inc) < 0.5
     assert ds.rate_error_deg_s.values[-1] < ds.rate_error_deg_s.values[0]
     names = sorted(p.name for p in (out / "figures").glob("*.png"))
-    assert names == ["active_observers.png", "errors.png", "frames_with_tracks.png",
+    assert names == ["active_observers.png", "errors.png", "errors_axes.png", "frames_with_tracks.png",
                      "reconstructed_cloud.png", "truth_vs_estimate.png"]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["study"] == "closed_loop" and summary["epochs"] == 13
