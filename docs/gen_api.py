@@ -17,8 +17,8 @@ import griffe
 
 __all__ = ["PACKAGES", "ApiBlock", "ApiPage", "api_pages", "api_index"]
 
-#: the science packages, in the order of the layering (bottom up), each with its own page
-PACKAGES = ("attitude", "orbits", "vision", "filters", "reconstruction", "formation", "chaser", "closed_loop")
+#: the notebook API, then the science packages in the order of the layering (bottom up), a page each
+PACKAGES = ("coobs", "attitude", "orbits", "vision", "filters", "reconstruction", "formation", "chaser", "closed_loop")
 
 
 @dataclass(frozen=True)
@@ -49,8 +49,6 @@ class ApiPage:
                       f"      members: [{', '.join(block.members)}]" if block.members else "      members: false",
                       "      show_submodules: false",
                       f"      show_root_heading: {'false' if root else 'true'}",
-                      # the package's own docstring opens the page; a sub-module's keeps it short
-                      f"      show_docstring_description: {'true' if root else 'false'}",
                       ""]
         return "\n".join(lines)
 
@@ -132,7 +130,8 @@ def api_pages(root: Path | str = ".", packages: tuple[str, ...] = PACKAGES) -> l
     list of ApiPage
         One page per package, in the order given.
     """
-    loader = griffe.GriffeLoader(search_paths=[str(root)], docstring_parser=griffe.Parser.numpy)
+    loader = griffe.GriffeLoader(search_paths=[str(root)], docstring_parser=griffe.Parser.numpy,
+                                 extensions=griffe.load_extensions("griffe_sphinx"))
     modules = [loader.load(p) for p in packages]
     loader.resolve_aliases(implicit=False, external=False)
     return [_page(m) for m in modules]
@@ -141,10 +140,11 @@ def api_pages(root: Path | str = ".", packages: tuple[str, ...] = PACKAGES) -> l
 def api_index(pages: list[ApiPage]) -> str:
     """The API reference's landing page: one row per package with its summary."""
     lines = ["# API reference", "",
-             "The public names of the science packages, generated at build time from their docstrings "
-             "(numpydoc style). The packages are plain functions and small frozen dataclasses over "
-             "numpy arrays, importable from a notebook; see the [architecture](../architecture.md) "
-             "for which imports which.", "",
+             "`coobs` is the entry point for notebooks (run a bundled scenario, sweep it, plot it); the "
+             "science packages below it are the building blocks: plain functions and small frozen "
+             "dataclasses over numpy arrays, importable on their own (the [architecture](../architecture.md) "
+             "says which imports which). Every page is generated at build time from the packages' "
+             "`__all__` and numpydoc docstrings.", "",
              "| package | names | what it does |", "|---|---|---|"]
     for page in pages:
         lines.append(f"| [`{page.package}`]({page.package}.md) | {len(page.names())} | {page.summary} |")
