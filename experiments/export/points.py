@@ -135,6 +135,7 @@ def _reconstruction(ds: xr.Dataset):
             track.add_element(int(j) + 1, idx_of[(int(i), int(j))])
         if track.length() >= 2:
             rec.add_point3D(X[i], track)
+    rec.update_point_3d_errors()                                         # points3D ERROR: reprojection RMS, px
     return rec
 
 
