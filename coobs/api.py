@@ -278,8 +278,7 @@ def plot(dataset: xr.Dataset, fig_dir: str | os.PathLike, *, format: str = "png"
     fig_dir : path
         Folder for the figures (created when missing).
     format : str
-        File format.  The scenario kinds draw PNG; another format is passed to a kind's drawing
-        function that takes a ``format`` argument, and refused otherwise.
+        File format, one of :data:`experiments.plotting.FORMATS` (``"png"``, ``"pdf"``, ``"svg"``).
 
     Returns
     -------
@@ -291,8 +290,13 @@ def plot(dataset: xr.Dataset, fig_dir: str | os.PathLike, *, format: str = "png"
     ConfigError
         The dataset names no scenario kind, or an unknown one.
     ValueError
-        ``format`` is not one the kind's figures can be drawn in.
+        ``format`` is not one the kind's figures can be drawn in (nothing written).
     """
+    from experiments.plotting import (  # matplotlib only when drawing
+        check_format,
+        sweep_overview_figures,
+    )
+
     if not isinstance(dataset, xr.Dataset):
         raise TypeError(f"dataset: must be an xarray.Dataset, not {type(dataset).__name__}")
     kind = dataset.attrs.get("kind")
@@ -302,11 +306,10 @@ def plot(dataset: xr.Dataset, fig_dir: str | os.PathLike, *, format: str = "png"
     if _is_sweep(dataset):
         draw = getattr(module, "plot_sweep", None)
         if draw is None:
-            from experiments.plotting import sweep_overview_figures
-
             draw = sweep_overview_figures
     else:
         draw = module.plot
+    check_format(format)
     kwargs: dict[str, Any] = {}
     if "format" in inspect.signature(draw).parameters:
         kwargs["format"] = format

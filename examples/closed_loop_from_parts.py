@@ -17,7 +17,13 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from closed_loop import ClosedLoop, GeometricObserver, MLRegistrar, initial_estimate, tumbling_target
+from closed_loop import (
+    ClosedLoop,
+    GeometricObserver,
+    MLRegistrar,
+    initial_estimate,
+    tumbling_target,
+)
 from filters import AttitudeEKF, attitude_error_angle
 from formation.geometry import symmetric_views
 from vision.camera import PinholeCamera

@@ -76,7 +76,7 @@ def main(*, out_dir: Path = GALLERY, small: bool = True, seed: int = 1) -> dict[
     ax1.plot(leds_W[:, 0], leds_W[:, 1], "o", mfc="none", color="tab:red", ms=9, label="attitude LEDs")
     ax1.set(xlabel="x_W [m]", ylabel="y_W [m]", aspect="equal", title="rig and measured points, from above")
     ax1.legend(fontsize=8, loc="lower right")
-    for k, name in enumerate(("x", "y", "z")):
+    for k in range(3):
         ax2.plot(np.full(n_points, k) + np.linspace(-0.2, 0.2, n_points), error_W_mm[:, k] * 1e3, "o", ms=4)
     ax2.axhline(0.0, color="0.6", lw=1)
     ax2.set(xticks=[0, 1, 2], xticklabels=["x", "y", "z"], ylabel="measured − true [µm]",
