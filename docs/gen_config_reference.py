@@ -112,7 +112,7 @@ def _bounds(metadata: list) -> str:
         for cls, op in ((at.Gt, ">"), (at.Ge, "≥"), (at.Lt, "<"), (at.Le, "≤")):
             if isinstance(m, cls):
                 bound = getattr(m, cls.__name__.lower())
-                parts.append(f"{op} {bound:g}" if isinstance(bound, float) else f"{op} {bound}")
+                parts.append(f"{op} {bound:.15g}" if isinstance(bound, float) else f"{op} {bound}")
         if isinstance(m, at.MinLen):
             parts.append(f"length ≥ {m.min_length}")
         if isinstance(m, at.MaxLen):
