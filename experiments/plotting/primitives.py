@@ -17,6 +17,7 @@ from matplotlib.axes import Axes  # noqa: E402
 
 from experiments.plotting.style import (  # noqa: E402
     ECLIPSE_COLOR,
+    ECLIPSE_HATCH,
     ENVELOPE_COLOR,
     check_cmap,
     legend_right,
@@ -182,7 +183,7 @@ def plot_envelope(t: np.ndarray, upper: np.ndarray, lower: np.ndarray | None = N
     ax = axes_or_new(ax)
     up = np.asarray(upper, dtype=float)
     lo = np.full_like(up, floor) if floor is not None else (-up if lower is None else np.asarray(lower, dtype=float))
-    ax.fill_between(t, lo, up, color=ENVELOPE_COLOR, alpha=0.18, linewidth=0, zorder=0.5, label=label)
+    ax.fill_between(t, lo, up, color=ENVELOPE_COLOR, alpha=0.3, linewidth=0, zorder=0.5, label=label)
     ax.plot(t, up, color=ENVELOPE_COLOR, linewidth=0.6, alpha=0.8, zorder=0.6)
     return ax
 
@@ -194,7 +195,8 @@ def plot_timeline(t: np.ndarray, active: np.ndarray, names: Sequence[str], *, ax
     ax = axes_or_new(ax)
     a = np.asarray(active, dtype=bool)
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-    if shade is not None and shade_spans(ax, t, shade, color=ECLIPSE_COLOR, label=shade_label) and shade_label:
+    if shade is not None and shade_spans(ax, t, shade, color=ECLIPSE_COLOR, hatch=ECLIPSE_HATCH,
+                                                label=shade_label) and shade_label:
         legend_right(ax)
     for s in range(a.shape[1]):
         on = a[:, s]

@@ -36,6 +36,7 @@ __all__ = [
     "FORMATS",
     "ENVELOPE_COLOR",
     "ECLIPSE_COLOR",
+    "ECLIPSE_HATCH",
     "GAP_COLOR",
     "check_cmap",
     "check_format",
@@ -61,8 +62,10 @@ UNITS = ("s", "m", "mm", "deg", "deg/s", "mdeg", "px", "DN", "%", "µs", "m/s", 
 #: output formats of every plot entry point
 FORMATS = ("png", "pdf", "svg")
 #: fill of the ±3σ envelope, shading of eclipse epochs, shading of epochs without a measurement
-ENVELOPE_COLOR = "#3b528b"
-ECLIPSE_COLOR = "0.80"
+ENVELOPE_COLOR = "#5ec962"
+ECLIPSE_COLOR = "0.75"
+#: hatch of eclipse spans (tells them from the envelope in grey print)
+ECLIPSE_HATCH = "///"
 GAP_COLOR = "#fde725"
 
 
@@ -94,7 +97,9 @@ def save(fig: Figure, path: Path, *, dpi: int = 150) -> Path:
     """Write ``fig`` in the format of ``path``'s suffix (``.png``, ``.pdf`` or ``.svg``) and close it.
 
     PDF and SVG files carry no creation date (and SVG ids come from a fixed salt), so the same
-    figure gives the same bytes.  ``dpi`` applies to PNG files and to images inside PDF/SVG.
+    figure gives the same bytes.  ``dpi`` applies to PNG files and to images inside PDF/SVG;
+    ``matplotlib.rcParams["savefig.dpi"]``, when set to a number, overrides it (one resolution
+    for a whole batch of figures, e.g. a journal's or a test's).
 
     Returns
     -------
@@ -106,6 +111,8 @@ def save(fig: Figure, path: Path, *, dpi: int = 150) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     metadata = {"png": {"Software": None}, "pdf": {"CreationDate": None, "ModDate": None, "Producer": None},
                 "svg": {"Date": None}}[fmt]
+    rc_dpi = matplotlib.rcParams["savefig.dpi"]
+    dpi = rc_dpi if isinstance(rc_dpi, int | float) else dpi
     with matplotlib.rc_context({"svg.hashsalt": "coobs"}):
         fig.savefig(path, dpi=dpi, format=fmt, metadata=metadata)
     plt.close(fig)

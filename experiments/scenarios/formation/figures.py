@@ -38,7 +38,7 @@ from experiments.plotting import (  # noqa: E402
     shared_range,
     sweep_overview_figures,
 )
-from experiments.plotting.style import ECLIPSE_COLOR, GAP_COLOR  # noqa: E402
+from experiments.plotting.style import ECLIPSE_COLOR, ECLIPSE_HATCH, GAP_COLOR  # noqa: E402
 
 __all__ = [
     "error_map_figures",
@@ -221,7 +221,8 @@ def error_map_run_figures(ds: xr.Dataset, fig_dir: Path, *, format: str = "png")
 
 def _shade_epochs(ax, ds: xr.Dataset) -> None:
     t = ds["time_s"].values
-    shade_spans(ax, t, ds["illumination"].values <= 0.0, color=ECLIPSE_COLOR, label="target in Earth's shadow")
+    shade_spans(ax, t, ds["illumination"].values <= 0.0, color=ECLIPSE_COLOR, hatch=ECLIPSE_HATCH,
+                label="target in Earth's shadow")
     if "measurement_ok" in ds:
         ok = np.asarray(ds["measurement_ok"].values, dtype=bool)
         shade_spans(ax, t, ~ok & (ds["illumination"].values > 0.0), color=GAP_COLOR, alpha=0.35,
