@@ -4,7 +4,18 @@ from __future__ import annotations
 
 import typer
 
-from experiments.cli import bench, export, figures, filter_study, plot, run, sweep, tumble, version
+from experiments.cli import (
+    bench,
+    configs,
+    export,
+    figures,
+    filter_study,
+    plot,
+    run,
+    sweep,
+    tumble,
+    version,
+)
 
 __all__ = ["app", "main"]
 
@@ -27,6 +38,7 @@ app.command("plot")(plot.plot)
 app.command("sweep")(sweep.sweep)
 app.command("filter-study")(filter_study.filter_study)
 app.command("figures")(figures.figures)
+app.command("configs")(configs.configs)
 app.command("export")(export.export)
 
 

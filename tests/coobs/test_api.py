@@ -135,3 +135,17 @@ def test_python_dash_m_coobs_is_the_command_line():
     out = subprocess.run([sys.executable, "-m", "coobs", "--help"], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert "Usage: coobs" in out.stdout and "sweep" in out.stdout
+
+
+def test_coobs_configs_command_lists_the_names_kinds_and_titles_of_the_api_listing():
+    from typer.testing import CliRunner
+
+    from experiments.cli import app
+
+    result = CliRunner().invoke(app, ["configs"])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    listing = coobs.configs()
+    assert [line.split()[0] for line in lines] == list(listing)
+    for line, (name, title) in zip(lines, listing.items(), strict=True):
+        assert line.endswith(title) and tomllib.loads((CONFIGS / f"{name}.toml").read_text())["kind"] in line
