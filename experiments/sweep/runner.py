@@ -7,8 +7,16 @@ Guarantees:
 - **Resumable**: each finished cell is written (metrics, then its ``done`` flag) as soon as it
   completes; running the same sweep again computes only the cells whose flag is not set
   (:mod:`experiments.sweep.store`).
-- **Failures are rows**: an exception inside a cell, a trial the cell reports as failed, or a worker
-  that dies becomes NaN metrics plus a ``failure_reason`` string; the sweep goes on.
+- **A cell's failures are rows**: an exception inside a cell or a trial the cell reports as failed
+  becomes NaN metrics plus a ``failure_reason`` string (:func:`experiments.sweep.cell.run_cell`
+  never raises); the sweep goes on.
+- **Infrastructure failures are not results**: every task carries its cell, so a task whose worker
+  died is rescheduled by Dask (up to ``distributed.scheduler.allowed-failures`` times, default 3)
+  on the surviving or restarted workers, and a task Dask gives up on is resubmitted ``retries``
+  times.  A cell is marked done only with the metrics its task computed; a cell still lost after
+  that stays undone (:attr:`SweepReport.n_undone`) and the next run computes it.
+- **Nothing is written for a call that cannot run**: the output directory, an existing store's
+  fingerprint and the scheduler connection are checked before the store is created.
 
 The runner knows nothing of scenario kinds: the caller passes the cell and builds each cell's input.
 """
@@ -17,6 +25,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,18 +33,26 @@ from typing import Any
 
 import numpy as np
 
-from experiments.sweep.cell import SweepCell, failure_rows, run_cell
+from experiments.sweep.cell import SweepCell, run_cell
 from experiments.sweep.seeds import cell_entropy
 from experiments.sweep.spec import coord_names, grid_arrays, grid_cells
 from experiments.sweep.store import (
     STORE_NAME,
+    check_out,
+    create_store,
+    existing_done,
     fingerprint_of,
     open_sweep,
-    prepare_store,
     write_cell,
 )
 
 __all__ = ["SweepReport", "run_sweep"]
+
+
+#: default address of the local cluster's dashboard: loopback only, a free port
+LOOPBACK_DASHBOARD = "127.0.0.1:0"
+#: seconds without any worker after which a local cluster's sweep stops (cells left undone)
+LOCAL_NO_WORKER_TIMEOUT_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -49,7 +66,7 @@ class SweepReport:
     n_cells : int
         Cells in the grid.
     n_computed : int
-        Cells computed by this call (the others were already done).
+        Cells computed and written by this call (the others were already done, or are undone).
     n_failed_trials : int
         Trials in the whole store with a non-empty ``failure_reason``.
     wall_s : float
@@ -59,6 +76,12 @@ class SweepReport:
     peak_worker_rss_mb : dict
         Peak resident memory of each worker process (MiB) at the end of the sweep, as reported by
         ``getrusage``; empty when the workers could not report it.
+    n_undone : int
+        Cells of the grid still not done after this call: their tasks were lost to infrastructure
+        failures (workers killed, tasks cancelled, no worker left).  Running the same sweep again
+        computes them; ``0`` when the store is complete.
+    undone_reason : str
+        The most frequent infrastructure failure behind the undone cells (``""`` when none).
     """
 
     store: Path
@@ -68,6 +91,8 @@ class SweepReport:
     wall_s: float
     workers: int
     peak_worker_rss_mb: dict[str, float]
+    n_undone: int = 0
+    undone_reason: str = ""
 
 
 def peak_rss_mb() -> float:
@@ -92,6 +117,10 @@ def run_sweep(
     scheduler: str | None = None,
     processes: bool = True,
     progress: Callable[[int, int], None] | None = None,
+    dashboard_address: str | None = LOOPBACK_DASHBOARD,
+    connect_timeout_s: float = 5.0,
+    retries: int = 1,
+    no_worker_timeout_s: float | None = None,
 ) -> SweepReport:
     """Run (or resume) a sweep on Dask and stream every cell into ``out/sweep.zarr``.
 
@@ -128,17 +157,34 @@ def run_sweep(
         Local workers as processes (default) or threads.
     progress : callable, optional
         ``progress(done_cells, total_cells)``; called once at the start (with the cells already done)
-        and after each cell.
+        and after each cell (the first call comes once the cluster is up).
+    dashboard_address : str or None
+        ``HOST:PORT`` of the local cluster's dashboard (port 0: a free one); default loopback only,
+        ``None`` turns it off.  The local scheduler and workers always listen on 127.0.0.1.
+        Ignored with ``scheduler``.
+    connect_timeout_s : float
+        Seconds to wait for ``scheduler`` to answer (> 0).
+    retries : int
+        Times a cell whose task Dask gave up on (``KilledWorker`` after its workers died
+        ``distributed.scheduler.allowed-failures`` + 1 times, a cancelled or lost task) is
+        resubmitted (>= 0).
+    no_worker_timeout_s : float, optional
+        Stop when the cluster has had no worker for this long (seconds), leaving the remaining cells
+        undone; default 60 s on a local cluster (its nannies restart dead workers within seconds) and
+        no limit with ``scheduler`` (its workers may be queued on a batch system).
 
     Returns
     -------
     SweepReport
+        With ``n_undone > 0`` when cells remain undone after infrastructure failures.
 
     Raises
     ------
     ValueError
-        Bad ``trials``/``seed``/``workers``/grid, a ``make_input`` failure, or an ``out`` that holds
-        a different sweep.  Nothing is written in these cases.
+        Bad ``trials``/``seed``/``workers``/grid/``dashboard_address``/``retries``/timeouts, a
+        ``make_input`` failure, an ``out`` that is a file, not writable or holds a different sweep,
+        a ``scheduler`` that does not answer within ``connect_timeout_s``, or a local cluster that
+        cannot start.  Nothing is written in these cases.
     """
     if not isinstance(trials, int | np.integer) or trials < 1:
         raise ValueError(f"trials: must be an integer >= 1, got {trials!r}")
@@ -146,6 +192,12 @@ def run_sweep(
         raise ValueError(f"seed: must be an integer >= 0, got {seed!r}")
     if scheduler is None and (not isinstance(workers, int | np.integer) or workers < 1):
         raise ValueError(f"workers: must be an integer >= 1, got {workers!r}")
+    if not isinstance(retries, int | np.integer) or retries < 0:
+        raise ValueError(f"retries: must be an integer >= 0, got {retries!r}")
+    _check_dashboard_address(dashboard_address)
+    for name, value in (("connect_timeout_s", connect_timeout_s), ("no_worker_timeout_s", no_worker_timeout_s)):
+        if value is not None and not (isinstance(value, int | float) and np.isfinite(value) and value > 0):
+            raise ValueError(f"{name}: must be a number of seconds > 0, got {_short(value)}")
     for name, m in cell.metrics.items():
         if name in ("failure_reason", "done", "trial"):
             raise ValueError(f"cell.metrics: {name!r} is a reserved name")
@@ -164,53 +216,47 @@ def run_sweep(
     store = Path(out) / STORE_NAME
     base_attrs = {"cell": cell.name, "seed": int(seed), "trials": int(trials),
                   "swept_keys": json.dumps(list(garr)), "seed_keys": json.dumps(keys), **(attrs or {})}
-    done = prepare_store(store, cell, garr, names, int(trials), fingerprint, base_attrs)
+    check_out(Path(out))
+    gshape = tuple(len(v) for v in garr.values())
+    done = existing_done(store, fingerprint, gshape)
 
-    todo = [(i, idx, params) for i, (idx, params) in enumerate(cells) if not done[idx]]
+    todo = [(i, idx) for i, (idx, _) in enumerate(cells) if done is None or not done[idx]]
     total = len(cells)
-    n_done = total - len(todo)
-    if progress:
-        progress(n_done, total)
+    if progress and not todo:
+        progress(total, total)
     t0 = time.perf_counter()
     peak: dict[str, float] = {}
     n_workers = int(workers)
+    n_computed = 0
+    lost: dict[tuple[int, ...], str] = {}
     if todo:
-        from distributed import Client, LocalCluster, as_completed
-
-        cluster = None
-        if scheduler is None:
-            import logging
-
-            cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=processes,
-                                   dashboard_address=":0", silence_logs=logging.ERROR)
-            client = Client(cluster)
-        else:
-            client = Client(scheduler)
+        client, cluster = _connect(scheduler, int(workers), processes, dashboard_address, float(connect_timeout_s))
         try:
+            if done is None:  # the store appears only once there is a cluster to fill it
+                create_store(store, cell, garr, names, int(trials), fingerprint, base_attrs)
+            if progress:
+                progress(total - len(todo), total)
             n_workers = len(client.scheduler_info().get("workers", {})) or n_workers
-            cell_future = client.scatter(cell, broadcast=True)
-            futures = {}
-            for i, idx, params in todo:
-                seed_params = {k: v for k, v in params.items() if k in keys}
-                fut = client.submit(run_cell, cell_future, inputs[i], cell_entropy(int(seed), seed_params),
-                                    int(trials), key=f"cell-{fingerprint[:12]}-{i}", pure=False)
-                futures[fut] = idx
-            for fut in as_completed(futures):
-                idx = futures.pop(fut)
-                if fut.status == "finished":
-                    result = fut.result()
-                else:  # the worker died or the task was lost: a failure row, not a crash
-                    try:
-                        exc = fut.exception()
-                        why = f"{type(exc).__name__}: {exc}"
-                    except Exception as err:  # noqa: BLE001 - e.g. a cancelled future
-                        why = f"{type(err).__name__}: {err}"
-                    result = failure_rows(cell, int(trials), f"worker failure: {why}")
-                fut.release()
-                write_cell(store, idx, names, result, cell)
-                n_done += 1
+            if no_worker_timeout_s is None and scheduler is None:
+                no_worker_timeout_s = LOCAL_NO_WORKER_TIMEOUT_S
+            entropies = [cell_entropy(int(seed), {k: v for k, v in params.items() if k in keys})
+                         for _, params in cells]
+
+            def submit(i: int, attempt: int) -> Any:
+                # the cell object travels with every task (about 1 kB): Dask can rerun a task after
+                # its worker died, which it cannot do with data scattered to the workers only
+                return client.submit(run_cell, cell, inputs[i], entropies[i], int(trials),
+                                     key=f"cell-{fingerprint[:12]}-{i}-{attempt}", pure=False)
+
+            def on_result(i: int, result: Mapping[str, np.ndarray]) -> None:
+                nonlocal n_computed
+                write_cell(store, cells[i][0], names, result, cell)
+                n_computed += 1
                 if progress:
-                    progress(n_done, total)
+                    progress(total - len(todo) + n_computed, total)
+
+            lost = _drain(client, {submit(i, 0): (i, 0) for i, _ in todo}, submit, on_result,
+                          int(retries), no_worker_timeout_s, cells)
             if processes or scheduler is not None:
                 try:
                     peak = {str(k): float(v) for k, v in client.run(peak_rss_mb).items()}
@@ -222,5 +268,129 @@ def run_sweep(
                 cluster.close()
     final = open_sweep(store)
     n_failed = int((final["failure_reason"].values != "").sum())
-    return SweepReport(store=store, n_cells=total, n_computed=len(todo), n_failed_trials=n_failed,
-                       wall_s=time.perf_counter() - t0, workers=n_workers, peak_worker_rss_mb=peak)
+    n_undone = int((~final["done"].values.astype(bool)).sum())
+    reason = Counter(lost.values()).most_common(1)[0][0] if lost else ""
+    return SweepReport(store=store, n_cells=total, n_computed=n_computed, n_failed_trials=n_failed,
+                       wall_s=time.perf_counter() - t0, workers=n_workers, peak_worker_rss_mb=peak,
+                       n_undone=n_undone, undone_reason=reason)
+
+
+def _drain(client: Any, pending: dict[Any, tuple[int, int]], submit: Callable[[int, int], Any],
+           on_result: Callable[[int, Mapping[str, np.ndarray]], None], retries: int,
+           no_worker_timeout_s: float | None, cells: list[tuple[tuple[int, ...], dict[str, Any]]],
+           poll_s: float = 0.05) -> dict[tuple[int, ...], str]:
+    """Collect the tasks as they finish; resubmit lost ones; return the cells given up on → why.
+
+    ``pending`` maps each future to ``(cell number, attempt)``.  A future that finished hands its
+    metrics to ``on_result``; any other end (an error, ``KilledWorker``, a cancelled or lost task)
+    is an infrastructure failure: the cell is resubmitted while ``attempt < retries``, else given
+    up on (never written).  When the cluster has had no worker for ``no_worker_timeout_s``, every
+    pending cell is given up on.
+    """
+    from distributed import as_completed
+
+    lost: dict[tuple[int, ...], str] = {}
+    queue = as_completed(list(pending))
+    no_worker_since: float | None = None
+    next_check = time.monotonic()
+    while not queue.is_empty():
+        if not queue.has_ready():
+            now = time.monotonic()
+            if no_worker_timeout_s is not None and now >= next_check:
+                next_check = now + 1.0
+                if client.nthreads():
+                    no_worker_since = None
+                elif no_worker_since is None:
+                    no_worker_since = now
+                elif now - no_worker_since >= no_worker_timeout_s:
+                    for fut, (i, _) in pending.items():
+                        lost[cells[i][0]] = f"no Dask worker for {no_worker_timeout_s:g} s"
+                        fut.cancel()
+                    queue.clear()
+                    break
+            time.sleep(poll_s)
+            continue
+        for fut in queue.next_batch(block=False):
+            i, attempt = pending.pop(fut)
+            status = fut.status
+            if status not in ("finished", "error", "cancelled"):
+                # "lost": its worker died after the task ran (the data went with it); Dask reruns
+                # the task, so wait for it again
+                pending[fut] = (i, attempt)
+                queue.add(fut)
+                continue
+            why = ""
+            try:
+                result = fut.result()
+            except Exception as exc:  # noqa: BLE001 - KilledWorker, CancelledError, a worker-side error
+                why = _reason(exc)
+            fut.release()
+            if not why:
+                on_result(i, result)
+            elif attempt < retries:
+                again = submit(i, attempt + 1)
+                pending[again] = (i, attempt + 1)
+                queue.add(again)
+            else:
+                lost[cells[i][0]] = why
+    return lost
+
+
+def _reason(exc: BaseException | None) -> str:
+    """One line naming an infrastructure failure."""
+    if exc is None:
+        return "task lost"
+    if type(exc).__name__ == "KilledWorker":
+        return "KilledWorker: every worker that ran the cell died"
+    return _short(f"{type(exc).__name__}: {exc}".rstrip(": "), 160)
+
+
+def _check_dashboard_address(address: str | None) -> None:
+    """``ValueError`` naming ``dashboard_address`` unless it is ``None`` or ``HOST:PORT``."""
+    if address is None:
+        return
+    host, sep, port = str(address).rpartition(":")
+    if not isinstance(address, str) or not sep or not port.isdigit() or int(port) > 65535 or " " in host:
+        raise ValueError(f"dashboard_address: expected HOST:PORT (port 0 for a free one), got {_short(address)}")
+
+
+def _connect(scheduler: str | None, workers: int, processes: bool, dashboard_address: str | None,
+             connect_timeout_s: float) -> tuple[Any, Any]:
+    """A client of ``scheduler`` or of a new loopback ``LocalCluster``: ``(client, cluster or None)``."""
+    import logging
+
+    import dask
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            return Client(scheduler, timeout=connect_timeout_s), None
+        except Exception as exc:  # noqa: BLE001 - refused, unreachable, malformed: one line
+            why = (f"no Dask scheduler answered within {connect_timeout_s:g} s"
+                   if isinstance(exc, OSError | TimeoutError) else _reason(exc)[:80])
+            raise ValueError(f"scheduler: cannot connect to {_short(scheduler)} ({why})") from None
+    # everything on loopback: worker processes through ``host``; thread workers (in-process, no
+    # address of their own) through their HTTP server's address, which otherwise takes every interface
+    local: dict[str, Any] = {"host": "127.0.0.1"} if processes else {"worker_dashboard_address": LOOPBACK_DASHBOARD}
+    if dashboard_address is None:  # no dashboard; its HTTP server (health, metrics) on a free loopback port
+        local["scheduler_kwargs"] = {"dashboard": False, "dashboard_address": LOOPBACK_DASHBOARD}
+    try:
+        # one task at a time on each worker (saturation 1.0, not 1.1): a cell is seconds of work,
+        # and a worker that dies then takes only its own cell down with it
+        with dask.config.set({"distributed.scheduler.worker-saturation": 1.0}):
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                                   dashboard_address=dashboard_address, silence_logs=logging.ERROR, **local)
+    except Exception as exc:  # noqa: BLE001 - e.g. a dashboard host that is not this machine's
+        raise ValueError(f"workers/dashboard_address: cannot start a local Dask cluster of {workers} "
+                         f"workers on {dashboard_address!r} ({_reason(exc)[:60]})") from None
+    try:
+        return Client(cluster), cluster
+    except BaseException:
+        cluster.close()
+        raise
+
+
+def _short(value: object, n_chars: int = 60) -> str:
+    """``repr``-like text of ``value`` on one line, cut to ``n_chars`` characters."""
+    text = " ".join((value if isinstance(value, str) else repr(value)).split())
+    return text if len(text) <= n_chars else text[: n_chars - 1] + "…"

@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import shutil
+import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -21,9 +23,13 @@ import xarray as xr
 
 from experiments.sweep.cell import SweepCell
 
-__all__ = ["STORE_NAME", "fingerprint_of", "store_template", "open_sweep", "write_cell", "prepare_store"]
+__all__ = ["STORE_NAME", "FINGERPRINT_ATTR", "fingerprint_of", "store_template", "open_sweep", "write_cell",
+           "check_out", "existing_done", "create_store"]
 
 STORE_NAME = "sweep.zarr"
+#: dataset attribute holding the sweep's fingerprint (stores of the first restructured release
+#: wrote ``sweepfingerprint_of``; both are read)
+FINGERPRINT_ATTR = "sweep_fingerprint"
 
 
 def fingerprint_of(cell: SweepCell, grid: Mapping[str, np.ndarray], trials: int, seed: int, identity: str) -> str:
@@ -103,25 +109,63 @@ def write_cell(store: Path, idx: tuple[int, ...], names: list[str], result: Mapp
     xr.Dataset({"done": (names, np.ones(lead, dtype=bool))}).to_zarr(store, region=region, consolidated=False)
 
 
-def prepare_store(store: Path, cell: SweepCell, grid: Mapping[str, np.ndarray], names: list[str],
-                   trials: int, fingerprint: str, attrs: Mapping[str, Any]) -> np.ndarray:
-    """Create the store, or check that an existing one belongs to this sweep; return ``done``."""
-    if store.exists():
-        try:
-            with xr.open_zarr(store, consolidated=False) as old:
-                old_fp = old.attrs.get("sweepfingerprint_of")
-                done = old["done"].values.astype(bool)
-        except Exception as exc:  # noqa: BLE001 - an unreadable store is reported, not crashed on
-            raise ValueError(f"out: {store} exists but cannot be read as a sweep ({exc})") from None
-        if old_fp != fingerprint:
-            raise ValueError(f"out: {store} holds a different sweep (other grid, trials, seed or config); "
-                             "use another --out or delete it")
-        return done
-    ds, encoding = store_template(cell, grid, names, trials, {**attrs, "sweepfingerprint_of": fingerprint})
+def check_out(out: Path) -> None:
+    """Check, before any work, that ``out`` is (or can become) a writable directory; write nothing.
+
+    Raises ``ValueError`` naming ``out`` when ``out`` (or one of its parents) is a file, or when its
+    nearest existing ancestor refuses a new directory (read-only file system, no permission, a
+    pseudo file system such as ``/proc``).  The check creates and removes a probe directory there,
+    so it holds for root as well.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"out: {_short(out)} is a file, not a directory")
+    ancestor = out
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise ValueError(f"out: {_short(out)} cannot be created: {_short(ancestor)} is a file")
+    try:
+        probe = tempfile.mkdtemp(prefix=".coobs-write-probe-", dir=ancestor)
+    except OSError as exc:
+        raise ValueError(f"out: {_short(out)} is not writable ({exc.strerror or type(exc).__name__} "
+                         f"in {_short(ancestor)})") from None
+    os.rmdir(probe)
+
+
+def existing_done(store: Path, fingerprint: str, shape: tuple[int, ...]) -> np.ndarray | None:
+    """The ``done`` flags of an existing store of this very sweep; ``None`` when there is no store.
+
+    Reads only.  Raises ``ValueError`` naming ``out`` when the store is unreadable or holds another
+    sweep (its fingerprint differs).
+    """
+    if not store.exists():
+        return None
+    try:
+        with xr.open_zarr(store, consolidated=False) as old:
+            old_fp = old.attrs.get(FINGERPRINT_ATTR, old.attrs.get("sweepfingerprint_of"))
+            done = old["done"].values.astype(bool)
+    except Exception as exc:  # noqa: BLE001 - an unreadable store is reported, not crashed on
+        raise ValueError(f"out: {_short(store)} exists but cannot be read as a sweep "
+                         f"({type(exc).__name__}: {_short(exc)})") from None
+    if old_fp != fingerprint or done.shape != shape:
+        raise ValueError(f"out: {_short(store)} holds a different sweep (other grid, trials, seed or config); "
+                         "use another --out or delete it")
+    return done
+
+
+def create_store(store: Path, cell: SweepCell, grid: Mapping[str, np.ndarray], names: list[str],
+                 trials: int, fingerprint: str, attrs: Mapping[str, Any]) -> None:
+    """Create the empty store of a sweep; it appears complete or not at all."""
+    ds, encoding = store_template(cell, grid, names, trials, {**attrs, FINGERPRINT_ATTR: fingerprint})
     store.parent.mkdir(parents=True, exist_ok=True)
     tmp = store.with_name(store.name + ".creating")
     shutil.rmtree(tmp, ignore_errors=True)
     ds.to_zarr(tmp, mode="w", encoding=encoding, consolidated=False)
-    tmp.rename(store)  # the store appears complete or not at all
-    return np.zeros(tuple(len(v) for v in grid.values()), dtype=bool)
+    tmp.rename(store)
 
+
+def _short(value: object, n_chars: int = 60) -> str:
+    """``str(value)`` on one line, cut to ``n_chars`` characters (with an ellipsis)."""
+    text = " ".join(str(value).split())
+    return text if len(text) <= n_chars else text[: n_chars - 1] + "…"

@@ -187,7 +187,7 @@ def test_sweep_on_an_external_scheduler_address_gives_the_reference_dataset(refe
     """--scheduler ADDRESS: the same sweep on a cluster the caller started (here an in-process one)."""
     from distributed import LocalCluster
 
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address="127.0.0.1:0") as cluster:
         report = run_sweep(ATTITUDE_NOISE_CELL, GRID, trials=TRIALS, out=tmp_path, seed=SEED,
                            scheduler=cluster.scheduler_address)
     assert report.workers == 2 and report.n_computed == 12
