@@ -306,7 +306,7 @@ def _errors_figure(ds: xr.Dataset):
     _shade_epochs(axes[2], ds)
     plot_time_series(t, np.stack([ds["increment_error_deg"].values, ds["increment_sigma_deg"].values]),
                      ax=axes[2], logy=True, labels=["registered increment error", "increment σ given to the filter"],
-                     ylabel="increment [deg]", legend=False, colors=["#440154", "#21918c"])
+                     ylabel="increment [deg]", legend=False, colors=["#3b528b", "#e16462"])
     legend_below(fig, ncol=3)
     return fig
 
