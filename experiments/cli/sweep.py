@@ -103,6 +103,7 @@ def sweep(
                            attrs={"kind": cfg.kind, "config_toml": config_text,
                                   "overrides": json.dumps(overrides)},
                            workers=workers, scheduler=scheduler, progress=update, retries=retries,
+                           on_connect=_print_dashboard,
                            dashboard_address=None if dashboard_address.lower() == "none" else dashboard_address)
     except ValueError as exc:
         raise fail(_option_names(str(exc))) from None
@@ -128,6 +129,12 @@ def sweep(
                           "run the same command again to compute them (finished cells are kept)",
                           markup=False, highlight=False, soft_wrap=True)
         raise typer.Exit(code=3)
+
+
+def _print_dashboard(url: str) -> None:
+    """Say where the Dask dashboard is (nothing when there is none)."""
+    if url:
+        console.print(f"dashboard: {url}", markup=False, highlight=False)
 
 
 def _option_names(message: str) -> str:

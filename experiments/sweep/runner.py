@@ -121,6 +121,7 @@ def run_sweep(
     connect_timeout_s: float = 5.0,
     retries: int = 1,
     no_worker_timeout_s: float | None = None,
+    on_connect: Callable[[str], None] | None = None,
 ) -> SweepReport:
     """Run (or resume) a sweep on Dask and stream every cell into ``out/sweep.zarr``.
 
@@ -172,6 +173,9 @@ def run_sweep(
         Stop when the cluster has had no worker for this long (seconds), leaving the remaining cells
         undone; default 60 s on a local cluster (its nannies restart dead workers within seconds) and
         no limit with ``scheduler`` (its workers may be queued on a batch system).
+    on_connect : callable, optional
+        ``on_connect(dashboard_url)`` once connected to a cluster (``""`` without a dashboard); not
+        called when every cell is already done.
 
     Returns
     -------
@@ -234,6 +238,8 @@ def run_sweep(
         try:
             if done is None:  # the store appears only once there is a cluster to fill it
                 create_store(store, cell, garr, names, int(trials), fingerprint, base_attrs)
+            if on_connect:
+                on_connect(_dashboard_url(client) if scheduler is not None or dashboard_address else "")
             if progress:
                 progress(total - len(todo), total)
             n_workers = len(client.scheduler_info().get("workers", {})) or n_workers
@@ -388,6 +394,14 @@ def _connect(scheduler: str | None, workers: int, processes: bool, dashboard_add
     except BaseException:
         cluster.close()
         raise
+
+
+def _dashboard_url(client: Any) -> str:
+    """The client's dashboard URL (``""`` when the scheduler has none)."""
+    try:
+        return str(client.dashboard_link or "")
+    except Exception:  # noqa: BLE001 - a scheduler without an HTTP dashboard
+        return ""
 
 
 def _short(value: object, n_chars: int = 60) -> str:

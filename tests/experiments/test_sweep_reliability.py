@@ -100,11 +100,12 @@ def reference(tmp_path_factory) -> xr.Dataset:
     out = tmp_path_factory.mktemp("reference")
     res = runner.invoke(app, ["sweep", str(CONFIG), "--out", str(out), "--workers", "1", *SMALL])
     assert res.exit_code == 0, res.output
+    assert "dashboard: http://127.0.0.1:" in res.output  # printed, on loopback
     return open_sweep(out)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("workers", [1, 2])
+@pytest.mark.parametrize("workers", [1])  # the only worker: issue 17's case (2 workers: measured in the note)
 def test_killing_every_worker_mid_sweep_reruns_their_cells_and_gives_the_uninterrupted_dataset(
         reference, tmp_path, workers):
     """The nannies restart the killed workers and Dask reruns the lost tasks (each cell travels with
@@ -116,7 +117,7 @@ def test_killing_every_worker_mid_sweep_reruns_their_cells_and_gives_the_uninter
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("workers", [1, 2])
+@pytest.mark.parametrize("workers", [2])  # every worker of two (one: measured in the note)
 def test_cells_lost_beyond_the_retry_bound_stay_undone_exit_3_and_the_rerun_completes_them(
         reference, tmp_path, workers):
     """No rescheduling allowed (allowed-failures 0, --retries 0): the killed tasks' cells stay undone,
@@ -217,14 +218,15 @@ def test_cli_unreachable_scheduler_is_one_line_exit_2_within_10_s_and_leaves_not
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("case", ["existing file", "under a file", "proc", "sys"])
+@pytest.mark.parametrize("case", ["existing file", "under a file", pytest.param(
+    "proc", marks=pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="no /proc file system"))])
 def test_out_that_cannot_hold_a_sweep_is_refused_before_connecting_and_nothing_is_written(tmp_path, case):
     """Checked before the (unreachable) scheduler is even tried, so the error is about ``out``, at once.
 
-    ``/proc`` and ``/sys`` refuse a new directory even to root."""
+    ``/proc`` refuses a new directory even to root (``chmod`` would not stop root)."""
     (tmp_path / "file").write_text("keep me")
     out = {"existing file": tmp_path / "file", "under a file": tmp_path / "file" / "sub",
-           "proc": Path("/proc/coobs_test"), "sys": Path("/sys/coobs_test")}[case]
+           "proc": Path("/proc/coobs_test")}[case]
     t0 = time.monotonic()
     with pytest.raises(ValueError, match=r"^out: .*(is a file|is not writable)"):
         run_sweep(ATTITUDE_NOISE_CELL, GRID, trials=2, out=out, scheduler=f"tcp://127.0.0.1:{_free_port()}",
