@@ -1,5 +1,5 @@
 """``python -m coobs``: the ``coobs`` command line."""
 
-from experiments.cli import app
+from coobs.cli import app
 
 app(prog_name="coobs")

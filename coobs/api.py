@@ -7,7 +7,6 @@ Everything here is a thin layer over :mod:`experiments` (the same calls ``coobs 
 from __future__ import annotations
 
 import inspect
-import json
 import os
 import tempfile
 import warnings
@@ -21,17 +20,16 @@ import xarray as xr
 
 from coobs._progress import ProgressLike, progress_callback
 from coobs._source import ConfigLike, config_source, config_text
+from coobs._sweep import run_config_sweep
 from experiments.bundled import bundled_configs
 from experiments.config import ConfigError, ScenarioConfig, kind_module, load_config, shorten
 from experiments.results import (
     ScenarioResult,
     check_output_dir,
-    json_default,
     summary_text,
     write_result,
-    write_summary,
 )
-from experiments.sweep import STORE_NAME, open_sweep, run_sweep, sweep_summary
+from experiments.sweep import STORE_NAME
 
 __all__ = ["RunResult", "Configs", "run", "sweep", "plot", "configs"]
 
@@ -230,32 +228,13 @@ def sweep(config: ConfigLike, *, out: str | os.PathLike, overrides: Mapping[str,
     ValueError
         One line naming the argument (``out``, ``workers``, ``scheduler`` ...); nothing written.
     """
-    from experiments.cli.sweep import prepare_config_sweep  # the same validation as `coobs sweep`
-    from experiments.sweep.spec import grid_arrays, grid_cells, params_key
-
-    if overrides is not None and not isinstance(overrides, Mapping):
-        raise ConfigError(f"overrides: must be a mapping of dotted key → value, not {type(overrides).__name__}")
-    overrides = dict(overrides or {})
-    source = config_source(config)
-    out_path = Path(out)
-    if (out_path / "result.nc").exists():
-        raise ValueError(f"out: {shorten(str(out_path))} holds the results of a run (result.nc); use another folder")
-    module, cfg, cell, grid, inputs = prepare_config_sweep(source, overrides)
-    text = config_text(source, load_config(source)[1])
-    by_params = {params_key(p): inp for (_, p), inp in zip(grid_cells(grid_arrays(grid)), inputs, strict=True)}
-    update, close = progress_callback(progress, desc=f"sweep {cfg.sweep.cell}", unit="cell")
+    update, close = progress_callback(progress, desc="sweep", unit="cell")
     try:
-        report = run_sweep(cell, grid, trials=cfg.sweep.trials, out=out_path, seed=cfg.sweep.seed,
-                           make_input=lambda params: by_params[params_key(params)],
-                           identity=cfg.model_dump_json(exclude={"sweep"}), seed_keys=cfg.sweep.seed_keys,
-                           attrs={"kind": cfg.kind, "config_toml": text,
-                                  "overrides": json.dumps(overrides, default=json_default)},
-                           workers=workers, scheduler=scheduler, processes=processes, progress=update,
-                           retries=retries, dashboard_address=dashboard_address)
+        ds, report, _ = run_config_sweep(config, out, overrides, workers=workers, scheduler=scheduler,
+                                         processes=processes, retries=retries, progress=update,
+                                         dashboard_address=dashboard_address)
     finally:
         close()
-    ds = open_sweep(out_path)
-    write_summary(out_path, sweep_summary(ds, report))
     if report.n_undone:
         warnings.warn(f"{report.n_undone} of {report.n_cells} cells not done ({report.undone_reason}); call "
                       "coobs.sweep again with the same arguments to compute them", RuntimeWarning, stacklevel=2)

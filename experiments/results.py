@@ -15,7 +15,7 @@ import numpy as np
 import xarray as xr
 
 __all__ = ["Progress", "no_progress", "ScenarioResult", "check_output_dir", "write_result", "write_summary",
-           "json_default", "summary_text"]
+           "json_default", "strict_json", "summary_json", "summary_text"]
 
 #: ``progress(done, total)``: how far a scenario run is (the CLI draws it as a bar)
 Progress = Callable[[int, int], None]
@@ -50,6 +50,43 @@ def json_default(o: Any) -> Any:
     if isinstance(o, Path):
         return str(o)
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def strict_json(o: Any) -> Any:
+    """``o`` as plain JSON values: numpy scalars and arrays as numbers and lists, paths as strings,
+    tuples as lists, and every NaN or infinity as ``None`` (JSON ``null``).
+
+    Parameters
+    ----------
+    o : Any
+        A summary: dicts, lists and tuples of numbers, strings, booleans, ``None``, numpy values, paths.
+
+    Returns
+    -------
+    Any
+        The same structure with nothing that strict JSON cannot hold.
+
+    Raises
+    ------
+    TypeError
+        A value of another type (see :func:`json_default`).
+    """
+    if isinstance(o, dict):
+        return {str(k): strict_json(v) for k, v in o.items()}
+    if isinstance(o, list | tuple):
+        return [strict_json(v) for v in o]
+    if isinstance(o, np.ndarray | np.generic | Path):
+        return strict_json(json_default(o))
+    if isinstance(o, float) and not np.isfinite(o):
+        return None
+    if o is None or isinstance(o, str | bool | int | float):
+        return o
+    return strict_json(json_default(o))
+
+
+def summary_json(summary: dict[str, Any]) -> str:
+    """The text of ``summary.json``: indented, strict JSON (``null`` for NaN and infinities), a final newline."""
+    return json.dumps(strict_json(summary), indent=2, allow_nan=False) + "\n"
 
 
 def _shown(path: Path) -> str:
@@ -137,7 +174,7 @@ def write_result(result: ScenarioResult, out: Path) -> None:
     tmp = Path(tempfile.mkdtemp(prefix=".coobs-", dir=out.parent))
     try:
         result.dataset.to_netcdf(tmp / "result.nc", engine="h5netcdf")
-        (tmp / "summary.json").write_text(json.dumps(result.summary, indent=2, default=json_default) + "\n")
+        (tmp / "summary.json").write_text(summary_json(result.summary))
         out.mkdir(parents=True, exist_ok=True)
         for name in ("result.nc", "summary.json"):
             shutil.move(str(tmp / name), str(out / name))
@@ -149,7 +186,7 @@ def write_summary(out: Path, summary: dict[str, Any]) -> Path:
     """Write ``out/summary.json`` atomically (a temp file then rename); returns its path."""
     path = out / "summary.json"
     tmp = out / ".summary.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=2, default=json_default) + "\n")
+    tmp.write_text(summary_json(summary))
     tmp.replace(path)
     return path
 

@@ -140,7 +140,7 @@ def test_python_dash_m_coobs_is_the_command_line():
 def test_coobs_configs_command_lists_the_names_kinds_and_titles_of_the_api_listing():
     from typer.testing import CliRunner
 
-    from experiments.cli import app
+    from coobs.cli import app
 
     result = CliRunner().invoke(app, ["configs"])
     assert result.exit_code == 0, result.output

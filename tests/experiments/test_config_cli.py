@@ -20,9 +20,9 @@ TOF = CONFIGS / "000_tof_700mm.toml"  # about a minute of computing: a check aft
 
 
 def coobs(*args: str) -> tuple[subprocess.CompletedProcess, float]:
-    """Run ``python -m experiments.cli ARGS`` in the repository root; returns the process and its wall time, s."""
+    """Run ``python -m coobs ARGS`` in the repository root; returns the process and its wall time, s."""
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "experiments.cli", *map(str, args)], cwd=ROOT, capture_output=True,
+    proc = subprocess.run([sys.executable, "-m", "coobs", *map(str, args)], cwd=ROOT, capture_output=True,
                           text=True, timeout=120, env={**os.environ, "MPLBACKEND": "Agg"})
     return proc, time.perf_counter() - t0
 

@@ -21,7 +21,7 @@ from plyfile import PlyData
 from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
-from experiments.cli import app
+from coobs.cli import app
 from experiments.export import inertial_states, open_run, write_aem, write_oem
 from orbits.cw import mean_motion, propagate
 from orbits.hill import hill_frame, hill_from_inertial

@@ -4,7 +4,7 @@ import json
 
 from typer.testing import CliRunner
 
-from experiments.cli import app
+from coobs.cli import app
 
 runner = CliRunner()
 

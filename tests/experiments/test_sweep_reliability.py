@@ -23,7 +23,7 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from experiments.cli import app
+from coobs.cli import app
 from experiments.studies.noise_calibration import ATTITUDE_NOISE_CELL
 from experiments.sweep import Metric, SweepCell, open_sweep, run_sweep
 
@@ -65,7 +65,7 @@ def _sweep_killing_every_worker_once(out: Path, workers: int, *extra: str,
 
     Returns ``(exit code, stderr, workers killed)``.
     """
-    cmd = [sys.executable, "-m", "experiments.cli", "sweep", str(CONFIG), "--out", str(out),
+    cmd = [sys.executable, "-m", "coobs", "sweep", str(CONFIG), "--out", str(out),
            "--workers", str(workers), *SMALL, *extra]
     proc = subprocess.Popen(cmd, cwd=REPO, env={**os.environ, **(env or {})}, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)

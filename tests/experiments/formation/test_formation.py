@@ -10,7 +10,7 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from experiments.cli import app
+from coobs.cli import app
 from experiments.config import load_config
 from experiments.sweep import cell_seed_sequences, open_sweep
 

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import typer
 
-from experiments.cli._console import console, fail, progress_bar
-from experiments.cli._redraw import redraw_run
+from coobs.cli._console import console, fail, progress_bar
+from coobs.cli._redraw import redraw_run
 from experiments.config import ConfigError, load_config, read_config_text
 from experiments.results import check_output_dir, summary_text, write_result
 from experiments.sweep import STORE_NAME

@@ -10,7 +10,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from experiments.cli._console import console, fail
+from coobs.cli._console import console, fail
 
 __all__ = ["bench"]
 

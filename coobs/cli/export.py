@@ -10,7 +10,7 @@ from pathlib import Path
 
 import typer
 
-from experiments.cli._console import console, fail
+from coobs.cli._console import console, fail
 from experiments.export.run import DEFAULT_EPOCH, FORMATS, INERTIAL_FRAMES, TIME_SYSTEMS
 
 __all__ = ["export"]

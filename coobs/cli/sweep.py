@@ -19,8 +19,8 @@ from typing import Any
 
 import typer
 
-from experiments.cli._console import console, err_console, fail, progress_bar
-from experiments.cli._redraw import redraw_sweep
+from coobs.cli._console import console, err_console, fail, progress_bar
+from coobs.cli._redraw import redraw_sweep
 from experiments.config import ConfigError, ScenarioConfig, load_cell_configs, load_config
 from experiments.results import write_summary
 from experiments.sweep import SweepCell, open_sweep, parse_overrides, run_sweep, sweep_summary

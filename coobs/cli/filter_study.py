@@ -10,7 +10,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from experiments.cli._console import console, fail
+from coobs.cli._console import console, fail
 from experiments.studies.filter_study import STUDIES, run_studies
 
 __all__ = ["filter_study"]

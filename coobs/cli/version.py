@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from experiments.cli._console import console
+from coobs.cli._console import console
 
 __all__ = ["version"]
 

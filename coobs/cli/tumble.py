@@ -7,7 +7,7 @@ import typer
 from rich.table import Table
 
 from attitude.rigid_body import check_inertia
-from experiments.cli._console import console, fail
+from coobs.cli._console import console, fail
 from experiments.studies.tumble import tumble_history
 
 __all__ = ["tumble"]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from experiments.cli._console import console, fail
+from coobs.cli._console import console, fail
 
 __all__ = ["TOPICS", "figures"]
 

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import typer
 
-from experiments.cli._console import console, fail
-from experiments.cli._redraw import redraw_run, redraw_sweep
+from coobs.cli._console import console, fail
+from coobs.cli._redraw import redraw_run, redraw_sweep
 from experiments.config import ConfigError
 from experiments.sweep import STORE_NAME
 

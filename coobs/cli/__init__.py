@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from experiments.cli import (
+from coobs.cli import (
     bench,
     configs,
     export,

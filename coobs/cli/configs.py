@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from coobs.cli._console import console
 from experiments.bundled import bundled_configs
-from experiments.cli._console import console
 
 __all__ = ["configs"]
 

@@ -1,5 +1,0 @@
-"""``python -m experiments.cli``: the ``coobs`` command line."""
-
-from experiments.cli import main
-
-main()
