@@ -70,7 +70,8 @@ def prepare_config_sweep(config: Path | Mapping[str, Any], overrides: Mapping[st
 def run_config_sweep(config: ConfigLike, out: str | os.PathLike, overrides: Mapping[str, Any] | None = None, *,
                      workers: int = 1, scheduler: str | None = None, processes: bool = True, retries: int = 1,
                      progress: Callable[[int, int], None] | None = None, dashboard_address: str | None = None,
-                     on_connect: Callable[[str], None] | None = None) -> tuple[xr.Dataset, SweepReport, Path]:
+                     on_connect: Callable[[str], None] | None = None
+                     ) -> tuple[xr.Dataset, SweepReport, dict[str, Any], Path]:
     """Check, run (or resume) the ``[sweep]`` table of a config and write ``out/summary.json``.
 
     The parameters are those of :func:`coobs.sweep`, with ``progress`` a callable or ``None`` and
@@ -79,8 +80,8 @@ def run_config_sweep(config: ConfigLike, out: str | os.PathLike, overrides: Mapp
     Returns
     -------
     tuple
-        ``(dataset, report, summary_path)``: the stored sweep, what :func:`experiments.sweep.run_sweep`
-        did, and the path of ``summary.json``.
+        ``(dataset, report, summary, summary_path)``: the stored sweep, what
+        :func:`experiments.sweep.run_sweep` did, the summary and the path of ``summary.json``.
 
     Raises
     ------
@@ -109,5 +110,5 @@ def run_config_sweep(config: ConfigLike, out: str | os.PathLike, overrides: Mapp
                        workers=workers, scheduler=scheduler, processes=processes, progress=progress,
                        retries=retries, dashboard_address=dashboard_address, on_connect=on_connect)
     ds = open_sweep(out_path)
-    path = write_summary(out_path, sweep_summary(ds, report))
-    return ds, report, path
+    summary = sweep_summary(ds, report)
+    return ds, report, summary, write_summary(out_path, summary)

@@ -10,7 +10,7 @@ import inspect
 import os
 import tempfile
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -29,9 +29,9 @@ from experiments.results import (
     summary_text,
     write_result,
 )
-from experiments.sweep import STORE_NAME
+from experiments.sweep import STORE_NAME, open_sweep
 
-__all__ = ["RunResult", "Configs", "run", "sweep", "plot", "configs"]
+__all__ = ["RunResult", "Configs", "run", "sweep", "plot", "configs", "folder_dataset"]
 
 
 @dataclass(frozen=True)
@@ -163,18 +163,89 @@ def run(config: ConfigLike, *, overrides: Mapping[str, Any] | None = None, out: 
     >>> res.summary["epochs"]
     7
     """
+    module, cfg, text, out_path = prepare_run(config, overrides, out, force)
+    update, close = progress_callback(progress, desc=cfg.kind, unit="step")
+    try:
+        result = compute_run(module, cfg, text, update)
+    finally:
+        close()
+    return store_run(result, cfg, out_path)
+
+
+def prepare_run(config: ConfigLike, overrides: Mapping[str, Any] | None, out: str | os.PathLike | None,
+               force: bool) -> tuple[ModuleType, ScenarioConfig, str, Path | None]:
+    """The first step of :func:`run` (and of ``coobs run``): validate the config, check ``out``.
+
+    Parameters
+    ----------
+    config, overrides, out, force
+        As in :func:`run`.
+
+    Returns
+    -------
+    tuple
+        ``(module, cfg, text, out_path)``: the scenario kind's module, the validated config, the
+        config text stored with the result, and ``out`` as a path (``None`` when not given).
+
+    Raises
+    ------
+    ConfigError
+        A bad config, name, path or override (one line naming the key).
+    ValueError
+        One line starting ``out:`` when ``out`` cannot be written; nothing is computed or written.
+    """
     source, module, cfg = _load(config, overrides)
     text = config_text(source, cfg, overrides)
     out_path = Path(out) if out is not None else None
     if out_path is not None:
         check_output_dir(out_path, config_toml=text, force=force, foreign=(STORE_NAME,))
-    update, close = progress_callback(progress, desc=cfg.kind, unit="step")
-    try:
-        result: ScenarioResult = module.run(cfg, progress=update)
-    finally:
-        close()
+    return module, cfg, text, out_path
+
+
+def compute_run(module: ModuleType, cfg: ScenarioConfig, text: str,
+             progress: Callable[[int, int], None] | None) -> ScenarioResult:
+    """The second step of :func:`run`: the scenario kind's ``run``, its dataset labelled with the kind and config.
+
+    Parameters
+    ----------
+    module, cfg, text
+        From :func:`prepare_run`.
+    progress : callable or None
+        ``progress(done, total)``.
+
+    Returns
+    -------
+    ScenarioResult
+        The dataset (``attrs["kind"]``, ``attrs["config_toml"]`` set) and the summary.
+    """
+    result: ScenarioResult = module.run(cfg, progress=progress)
     result.dataset.attrs["kind"] = cfg.kind
     result.dataset.attrs["config_toml"] = text
+    return result
+
+
+def store_run(result: ScenarioResult, cfg: ScenarioConfig, out_path: Path | None) -> RunResult:
+    """The last step of :func:`run`: write ``result.nc`` and ``summary.json`` into ``out_path`` (when given).
+
+    Parameters
+    ----------
+    result : ScenarioResult
+        From :func:`compute_run`.
+    cfg : ScenarioConfig
+        The validated config.
+    out_path : Path or None
+        The output folder, or ``None`` for nothing written.
+
+    Returns
+    -------
+    RunResult
+        What :func:`run` returns.
+
+    Raises
+    ------
+    OSError
+        The files could not be written.
+    """
     if out_path is not None:
         write_result(result, out_path)
     return RunResult(dataset=result.dataset, summary=result.summary, config=cfg, out=out_path)
@@ -230,7 +301,7 @@ def sweep(config: ConfigLike, *, out: str | os.PathLike, overrides: Mapping[str,
     """
     update, close = progress_callback(progress, desc="sweep", unit="cell")
     try:
-        ds, report, _ = run_config_sweep(config, out, overrides, workers=workers, scheduler=scheduler,
+        ds, report, _, _ = run_config_sweep(config, out, overrides, workers=workers, scheduler=scheduler,
                                          processes=processes, retries=retries, progress=update,
                                          dashboard_address=dashboard_address)
     finally:
@@ -245,17 +316,64 @@ def _is_sweep(dataset: xr.Dataset) -> bool:
     return "done" in dataset.data_vars and "trial" in dataset.dims
 
 
-def plot(dataset: xr.Dataset, fig_dir: str | os.PathLike, *, format: str = "png") -> list[Path]:
-    """Draw the figures of a run's or a sweep's dataset, as ``coobs plot`` does.
+def _shown(path: Path) -> str:
+    return repr(str(path)) if len(str(path)) <= 58 else repr(str(path)[:55]) + "..."
+
+
+def folder_dataset(folder: str | os.PathLike) -> xr.Dataset:
+    """The stored dataset of an output folder: ``result.nc`` of ``coobs run`` or ``coobs filter-study``,
+    else ``sweep.zarr`` of ``coobs sweep``.
+
+    Raises
+    ------
+    ValueError
+        One line starting ``out:``: the folder holds neither, or it cannot be read.
+    """
+    out = Path(folder)
+    try:
+        is_run = (out / "result.nc").is_file()
+        is_sweep = (out / STORE_NAME).exists()
+    except OSError as exc:
+        raise ValueError(f"out: {_shown(out)} cannot be used ({exc.strerror or type(exc).__name__})") from None
+    if not is_run and not is_sweep:
+        raise ValueError(f"out: no result.nc or {STORE_NAME} in {_shown(out)}")
+    what = "result.nc" if is_run else STORE_NAME
+    try:
+        return xr.load_dataset(out / "result.nc", engine="h5netcdf") if is_run else open_sweep(out)
+    except (OSError, ValueError, KeyError) as exc:
+        raise ValueError(f"out: {what} in {_shown(out)} cannot be read ({type(exc).__name__}: {exc})") from None
+
+
+def _drawer(dataset: xr.Dataset) -> Callable[..., list[Path]]:
+    """The function that draws ``dataset``'s figures, from its ``kind`` attribute."""
+    from experiments.plotting import sweep_overview_figures  # matplotlib only when drawing
+    from experiments.studies import filter_study
+
+    kind = dataset.attrs.get("kind")
+    if not kind:
+        raise ConfigError("dataset: no 'kind' attribute (a dataset of coobs.run or coobs.sweep has one)")
+    if kind == filter_study.KIND:
+        return filter_study.plot
+    module = kind_module(kind)
+    if _is_sweep(dataset):
+        return getattr(module, "plot_sweep", None) or sweep_overview_figures
+    return module.plot
+
+
+def plot(dataset: xr.Dataset | str | os.PathLike, fig_dir: str | os.PathLike | None = None, *,
+         format: str = "png") -> list[Path]:
+    """Draw the figures of a run's, a sweep's or a filter study's dataset, as ``coobs plot`` does.
 
     Parameters
     ----------
-    dataset : xarray.Dataset
+    dataset : xarray.Dataset or path
         ``RunResult.dataset``, the dataset :func:`sweep` returns, or either read back from
-        ``result.nc`` / ``sweep.zarr``; its ``kind`` attribute picks the scenario kind's figures
-        (a sweep of a kind without its own maps gets a map of every metric's trial mean).
-    fig_dir : path
-        Folder for the figures (created when missing).
+        ``result.nc`` / ``sweep.zarr``; or the output folder of ``coobs run``, ``coobs sweep`` or
+        ``coobs filter-study``, whose stored dataset is read.  Its ``kind`` attribute picks the
+        figures (a sweep of a kind without its own maps gets a map of every metric's trial mean).
+    fig_dir : path, optional
+        Folder for the figures (created when missing); default ``<folder>/figures`` when
+        ``dataset`` is a folder (required for a dataset).
     format : str
         File format, one of :data:`experiments.plotting.FORMATS` (``"png"``, ``"pdf"``, ``"svg"``).
 
@@ -269,31 +387,28 @@ def plot(dataset: xr.Dataset, fig_dir: str | os.PathLike, *, format: str = "png"
     ConfigError
         The dataset names no scenario kind, or an unknown one.
     ValueError
-        ``format`` is not one the kind's figures can be drawn in (nothing written).
+        ``format`` is not one the kind's figures can be drawn in, ``fig_dir`` is missing for a
+        dataset, or the folder holds no readable results (one line starting ``out:``); nothing written.
     """
-    from experiments.plotting import (  # matplotlib only when drawing
-        check_format,
-        sweep_overview_figures,
-    )
+    from experiments.plotting import check_format  # matplotlib only when drawing
 
-    if not isinstance(dataset, xr.Dataset):
-        raise TypeError(f"dataset: must be an xarray.Dataset, not {type(dataset).__name__}")
-    kind = dataset.attrs.get("kind")
-    if not kind:
-        raise ConfigError("dataset: no 'kind' attribute (a dataset of coobs.run or coobs.sweep has one)")
-    module = kind_module(kind)
-    if _is_sweep(dataset):
-        draw = getattr(module, "plot_sweep", None)
-        if draw is None:
-            draw = sweep_overview_figures
-    else:
-        draw = module.plot
+    if isinstance(dataset, str | os.PathLike):
+        folder = Path(dataset)
+        dataset = folder_dataset(folder)
+        if fig_dir is None:
+            fig_dir = folder / "figures"
+    elif not isinstance(dataset, xr.Dataset):
+        raise TypeError(f"dataset: must be an xarray.Dataset or an output folder, not {type(dataset).__name__}")
+    if fig_dir is None:
+        raise ValueError("fig_dir: needed to draw a dataset (a folder's figures go to <folder>/figures)")
+    draw = _drawer(dataset)
     check_format(format)
     kwargs: dict[str, Any] = {}
     if "format" in inspect.signature(draw).parameters:
         kwargs["format"] = format
     elif format != "png":
-        raise ValueError(f"format: the figures of scenario kind {kind!r} are drawn as PNG only, got {shorten(format)}")
+        raise ValueError(f"format: the figures of {dataset.attrs['kind']!r} are drawn as PNG only, got "
+                         f"{shorten(format)}")
     folder = Path(fig_dir)
     folder.mkdir(parents=True, exist_ok=True)
     return [Path(p) for p in draw(dataset, folder, **kwargs)]

@@ -1,4 +1,9 @@
-"""The ``coobs`` command line: a typer app with one module per command."""
+"""The ``coobs`` command line: a typer app with one module per command, over the Python API of :mod:`coobs`.
+
+``coobs run``, ``coobs sweep`` and ``coobs plot`` parse their options, call the functions behind
+:func:`coobs.run`, :func:`coobs.sweep` and :func:`coobs.plot`, and print; ``python -m coobs`` runs the
+same app.
+"""
 
 from __future__ import annotations
 
@@ -30,6 +35,21 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+def _show_version(value: bool) -> None:
+    if value:
+        import coobs
+
+        typer.echo(f"coobs {coobs.__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(version: bool = typer.Option(False, "--version", callback=_show_version, is_eager=True,
+                                       help="Print the coobs version and exit ('coobs version' lists the libraries).")
+          ) -> None:
+    """coobs: cooperative observation of a tumbling, non-cooperative spacecraft by a formation of observers."""
 app.command("version")(version.version)
 app.command("bench")(bench.bench)
 app.command("tumble")(tumble.tumble)

@@ -1,17 +1,26 @@
-"""``coobs filter-study``: the validation studies of ``filters``, printed as tables and written as JSON."""
+"""``coobs filter-study``: the validation studies of ``filters``, printed as tables with units.
+
+Writes ``OUT/result.nc`` (what the figures are drawn from, ``kind = "filter_study"``; ``coobs plot OUT``
+redraws them), ``OUT/summary.json`` and ``OUT/figures/``.
+"""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import typer
+import xarray as xr
 from rich.table import Table
+from rich.text import Text
 
+from coobs import api
 from coobs.cli._console import console, fail
-from experiments.studies.filter_study import STUDIES, run_studies
+from coobs.cli._table import print_table, split_unit
+from experiments.results import check_output_dir, write_result
+from experiments.studies.filter_study import KIND, STUDIES, run_studies
+from experiments.sweep import STORE_NAME
 
 __all__ = ["filter_study"]
 
@@ -42,14 +51,39 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
+def _header(key: str) -> str:
+    """A column header: the key in words, its unit in brackets (``median convergence time [s]``)."""
+    name, unit = split_unit(key)
+    return name.replace("_", " ") + (f" [{unit}]" if unit else "")
+
+
 def _table(title: str, rows: dict, cols: tuple[str, ...]) -> None:
-    table = Table(title=title)
-    table.add_column("case")
+    table = Table(title=Text(title), title_justify="left")
+    table.add_column("case", overflow="fold")
     for c in cols:
-        table.add_column(c)
+        table.add_column(Text(_header(c)), justify="right", overflow="fold")
     for key, row in rows.items():
-        table.add_row(key, *(_fmt(row.get(c)) for c in cols))
-    console.print(table)
+        table.add_row(Text(key), *(Text(_fmt(row.get(c))) for c in cols))
+    print_table(console, table)
+
+
+def _check_out(out: Path) -> None:
+    """Exit 2 before any computing when ``out`` cannot be written or holds another command's results."""
+    try:
+        check_output_dir(out, force=True)
+    except ValueError as exc:
+        raise fail(f"--{exc}") from None
+    if (out / STORE_NAME).exists():
+        raise fail(f"--out: {str(out)[:60]!r} holds {STORE_NAME} of a sweep; choose another folder")
+    if (out / "result.nc").is_file():
+        try:
+            with xr.open_dataset(out / "result.nc", engine="h5netcdf") as ds:
+                kind = ds.attrs.get("kind")
+        except (OSError, ValueError):
+            kind = None
+        if kind != KIND:
+            raise fail(f"--out: {str(out)[:60]!r} holds the results of another command (result.nc); "
+                       "choose another folder")
 
 
 def _print_study(name: str, result: dict[str, Any]) -> None:
@@ -74,11 +108,13 @@ def filter_study(
     for s in selected:
         if s not in STUDIES:
             raise fail(f"--only: unknown study {s!r}; known: {', '.join(STUDIES)}")
-    figs = out / "figures" if figures else None
-    if figs is not None:
-        figs.mkdir(parents=True, exist_ok=True)
-    else:
-        out.mkdir(parents=True, exist_ok=True)
-    summary = run_studies(selected, trials=trials, seed=seed, fig_dir=figs, on_study=_print_study)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
-    console.print(f"wrote {out / 'summary.json'}")
+    _check_out(out)
+    result = run_studies(selected, trials=trials, seed=seed, on_study=_print_study)
+    try:
+        write_result(result, out)
+        written = api.plot(out, format="png") if figures else []
+    except OSError as exc:
+        raise fail(f"--out: cannot write in {str(out)[:60]!r} ({exc.strerror or type(exc).__name__})") from None
+    console.print(f"results: {out / 'result.nc'}, {out / 'summary.json'}", markup=False, highlight=False)
+    for f in written:
+        console.print(f"figure: {f}", markup=False, highlight=False)

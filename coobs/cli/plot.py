@@ -1,6 +1,8 @@
-"""``coobs plot DIR``: redraw the figures of a stored run or sweep from its result files.
+"""``coobs plot DIR``: redraw the figures of a stored run, sweep or filter study, as :func:`coobs.plot`.
 
-A folder without results, or results that cannot be read, exit with code 2 and one line.
+The folder's stored dataset (``result.nc`` of ``coobs run`` or ``coobs filter-study``, else
+``sweep.zarr``) says what it holds; its ``kind`` picks the figures.  A folder without results, or
+results that cannot be read, exit with code 2 and one line.
 """
 
 from __future__ import annotations
@@ -9,33 +11,30 @@ from pathlib import Path
 
 import typer
 
+from coobs import api
 from coobs.cli._console import console, fail
-from coobs.cli._redraw import redraw_run, redraw_sweep
 from experiments.config import ConfigError
 from experiments.sweep import STORE_NAME
 
 __all__ = ["plot"]
 
 
-def plot(out: Path = typer.Argument(..., help="A directory written by 'coobs run' or 'coobs sweep'."),
+def plot(out: Path = typer.Argument(..., help="A directory written by 'coobs run', 'coobs sweep' or "
+                                    "'coobs filter-study'."),
          fmt: str = typer.Option("png", "--format", help="Figure file format: png, pdf or svg.")) -> None:
-    """Redraw the figures of a stored run or sweep from its result files."""
+    """Redraw the figures of a stored run, sweep or filter study from its result files."""
     if fmt not in ("png", "pdf", "svg"):
         raise fail(f"format: must be one of png, pdf, svg, got {fmt!r}")
-    shown = repr(str(out)) if len(str(out)) <= 58 else repr(str(out)[:55]) + "..."
     try:
-        is_run = (out / "result.nc").is_file()
-        is_sweep = (out / STORE_NAME).exists()
-    except OSError as exc:
-        raise fail(f"out: {shown} cannot be used ({exc.strerror or type(exc).__name__})") from None
-    if not is_run and not is_sweep:
-        raise fail(f"out: no result.nc or {STORE_NAME} in {shown}")
+        dataset = api.folder_dataset(out)
+    except ValueError as exc:
+        raise fail(str(exc)) from None
+    what = "result.nc" if (out / "result.nc").is_file() else STORE_NAME
     try:
-        figures = redraw_run(out, format=fmt) if is_run else redraw_sweep(out, format=fmt)
+        figures = api.plot(dataset, out / "figures", format=fmt)
     except ConfigError as exc:
         raise fail(str(exc)) from None
     except (OSError, ValueError, KeyError) as exc:
-        what = "result.nc" if is_run else STORE_NAME
-        raise fail(f"out: {what} in {shown} cannot be read ({type(exc).__name__}: {exc})") from None
+        raise fail(f"out: {what} in {str(out)[:58]!r} cannot be read ({type(exc).__name__}: {exc})") from None
     for f in figures:
-        console.print(f"figure: {f}")
+        console.print(f"figure: {f}", markup=False, highlight=False)

@@ -11,59 +11,23 @@ Exit codes: 0 every cell done; 2 bad input (one line naming the option or key, n
 
 from __future__ import annotations
 
-import json
-from collections.abc import Mapping
 from pathlib import Path
-from types import ModuleType
-from typing import Any
 
 import typer
 
+from coobs import api
+from coobs._sweep import run_config_sweep
 from coobs.cli._console import console, err_console, fail, progress_bar
-from coobs.cli._redraw import redraw_sweep
-from experiments.config import ConfigError, ScenarioConfig, load_cell_configs, load_config
-from experiments.results import write_summary
-from experiments.sweep import SweepCell, open_sweep, parse_overrides, run_sweep, sweep_summary
+from experiments.config import ConfigError
+from experiments.sweep import parse_overrides
 from experiments.sweep.runner import LOOPBACK_DASHBOARD
-from experiments.sweep.spec import coord_names, grid_arrays, grid_cells, params_key
 
-__all__ = ["prepare_config_sweep", "sweep"]
-
-
-def prepare_config_sweep(config: Path | str, overrides: Mapping[str, Any] | None = None
-                         ) -> tuple[ModuleType, ScenarioConfig, SweepCell, dict[str, list[Any]], list[ScenarioConfig]]:
-    """Validate a sweep config and every cell's config; nothing is computed or written.
-
-    ``overrides`` (dotted key → value) are applied to the file before validation.  Returns
-    ``(module, cfg, cell, grid, inputs)``; raises :class:`experiments.config.ConfigError` (one line
-    naming the key) when anything is wrong.
-    """
-    overrides = dict(overrides or {})
-    module, cfg = load_config(config, overrides=overrides)
-    spec = getattr(cfg, "sweep", None)
-    if spec is None:
-        raise ConfigError("sweep: missing [sweep] table (cell, trials, grid)")
-    if not hasattr(module, "sweep_cell"):
-        raise ConfigError(f"kind: scenario kind {cfg.kind!r} has no sweep cells")
-    try:
-        cell = module.sweep_cell(cfg)
-    except ValueError as exc:
-        raise ConfigError(f"sweep.cell: {exc}") from None
-    grid = spec.grid_values()
-    try:
-        coord_names(list(grid))
-        garr = grid_arrays(grid)
-    except ValueError as exc:
-        raise ConfigError(f"sweep.{exc}") from None
-    try:  # linear in the cells: the [sweep] table is validated once, above
-        inputs = load_cell_configs(config, overrides, (params for _, params in grid_cells(garr)))
-    except ConfigError as exc:
-        raise ConfigError(f"{exc} [in sweep.grid]") from None
-    return module, cfg, cell, grid, inputs
+__all__ = ["sweep"]
 
 
 def sweep(
-    config: Path = typer.Argument(..., help="Scenario config (TOML) with a sweep table (cell, trials, seed, grid)."),
+    config: str = typer.Argument(..., help="A bundled config's name or a scenario config (TOML) with a sweep table "
+                                 "(cell, trials, seed, grid)."),
     out: Path = typer.Option(..., "--out", help="Output directory: sweep.zarr, summary.json, figures/."),
     workers: int = typer.Option(2, "--workers", help="Dask LocalCluster workers (one thread each)."),
     scheduler: str = typer.Option(None, "--scheduler", help="Address of a running Dask scheduler instead of a LocalCluster."),
@@ -88,23 +52,16 @@ def sweep(
         raise fail(f"--out: {str(out)[:60]} holds the results of a `coobs run` (result.nc); use another --out")
     try:
         overrides = parse_overrides(set_)
-        module, cfg, cell, grid, inputs = prepare_config_sweep(config, overrides)
-    except (ConfigError, ValueError) as exc:
+    except ValueError as exc:
         raise fail(str(exc)) from None
-    spec = cfg.sweep
-    identity = cfg.model_dump_json(exclude={"sweep"})
-    config_text = Path(config).read_text()
-    by_params = {params_key(p): inp for (_, p), inp in zip(grid_cells(grid_arrays(grid)), inputs, strict=True)}
     update, stop = progress_bar()
     try:
-        report = run_sweep(cell, grid, trials=spec.trials, out=out, seed=spec.seed,
-                           make_input=lambda params: by_params[params_key(params)], identity=identity,
-                           seed_keys=spec.seed_keys,
-                           attrs={"kind": cfg.kind, "config_toml": config_text,
-                                  "overrides": json.dumps(overrides)},
-                           workers=workers, scheduler=scheduler, progress=update, retries=retries,
-                           on_connect=_print_dashboard,
-                           dashboard_address=None if dashboard_address.lower() == "none" else dashboard_address)
+        _, report, summary, path = run_config_sweep(
+            config, out, overrides, workers=workers, scheduler=scheduler, retries=retries, progress=update,
+            on_connect=_print_dashboard,
+            dashboard_address=None if dashboard_address.lower() == "none" else dashboard_address)
+    except ConfigError as exc:
+        raise fail(str(exc)) from None
     except ValueError as exc:
         raise fail(_option_names(str(exc))) from None
     except OSError as exc:  # the disk filled up or went away while cells were being written
@@ -114,10 +71,7 @@ def sweep(
         raise typer.Exit(code=1) from None
     finally:
         stop()
-    ds = open_sweep(out)
-    summary = sweep_summary(ds, report)
-    path = write_summary(out, summary)
-    figures = [] if no_figures or report.n_undone == report.n_cells else redraw_sweep(out)
+    figures = [] if no_figures or report.n_undone == report.n_cells else api.plot(out)
     console.print(f"cells: {summary['cells_done']}/{summary['cells']} done "
                   f"({report.n_computed} computed now, {report.wall_s:.1f} s on {report.workers} workers); "
                   f"failed trials: {summary['trials_failed']}", markup=False, highlight=False)
