@@ -30,6 +30,7 @@ import numpy as np
 import xarray as xr
 
 from attitude.rigid_body import propagate_torque_free
+from experiments.results import ScenarioResult
 from filters import (
     MEKF,
     AttitudeEKF,
@@ -39,7 +40,6 @@ from filters import (
     convergence_time,
     run_monte_carlo,
 )
-from experiments.results import ScenarioResult
 
 J_KG_M2 = np.diag([1000.0, 800.0, 600.0])
 RATIOS_TRUE = np.array([0.8, 0.6])
