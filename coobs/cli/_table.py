@@ -23,8 +23,8 @@ UNITS: tuple[tuple[tuple[str, ...], str], ...] = (
     (("kg",), "kg"),
 )
 
-#: narrowest console the tables are printed on (wider terminals use their width), characters
-MIN_WIDTH = 120
+#: width of the tables written to a file or a pipe (a terminal's own width is used), characters
+PIPE_WIDTH = 120
 
 
 def split_unit(key: str) -> tuple[str, str]:
@@ -107,5 +107,7 @@ def summary_table(summary: Mapping[str, Any], title: str | None = None) -> Table
 
 
 def print_table(console: Console, table: Table) -> None:
-    """Print ``table`` at least :data:`MIN_WIDTH` characters wide (a narrow terminal wraps the lines)."""
-    Console(width=max(console.width, MIN_WIDTH), file=console.file, highlight=False).print(table)
+    """Print ``table`` as wide as the terminal (its cells fold, nothing is cut), or :data:`PIPE_WIDTH`
+    characters wide into a file or a pipe."""
+    width = console.width if console.is_terminal else max(console.width, PIPE_WIDTH)
+    Console(width=width, file=console.file, highlight=False).print(table)
