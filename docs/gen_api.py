@@ -15,10 +15,13 @@ from pathlib import Path
 
 import griffe
 
-__all__ = ["PACKAGES", "ApiBlock", "ApiPage", "api_pages", "api_index"]
+__all__ = ["PACKAGES", "HIDDEN", "ApiBlock", "ApiPage", "api_pages", "api_index"]
 
 #: the notebook API, then the science packages in the order of the layering (bottom up), a page each
 PACKAGES = ("coobs", "attitude", "orbits", "vision", "filters", "reconstruction", "formation", "chaser", "closed_loop")
+#: sub-packages left off the pages: the command line (``coobs.cli``) is documented by ``coobs --help``
+#: and the README, not as Python names
+HIDDEN = ("coobs.cli",)
 
 
 @dataclass(frozen=True)
@@ -58,7 +61,8 @@ class ApiPage:
 
 
 def _is_public_path(path: str) -> bool:
-    return not any(part.startswith("_") for part in path.split("."))
+    hidden = any(path == h or path.startswith(h + ".") for h in HIDDEN)
+    return not hidden and not any(part.startswith("_") for part in path.split("."))
 
 
 def _exports(module: griffe.Module) -> list[str]:

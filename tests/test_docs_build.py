@@ -144,7 +144,8 @@ def _runtime_exports(package: str) -> dict[str, object]:
     pkg = importlib.import_module(package)
     modules = [pkg]
     for info in pkgutil.walk_packages(pkg.__path__, prefix=f"{package}."):
-        if not any(part.startswith("_") for part in info.name.split(".")):
+        hidden = any(info.name == h or info.name.startswith(h + ".") for h in gen_api.HIDDEN)
+        if not hidden and not any(part.startswith("_") for part in info.name.split(".")):
             modules.append(importlib.import_module(info.name))
     found = {}
     for module in modules:
