@@ -6,12 +6,12 @@ The calls a notebook needs, over the scenario kinds of :mod:`experiments`:
 - :func:`run` — one scenario (a bundled name, a TOML file, a table or a config, plus dotted-key
   overrides) → :class:`RunResult` with ``.dataset`` (xarray), ``.summary`` and ``.plot()``;
 - :func:`sweep` — a config's ``[sweep]`` table on Dask → the sweep's xarray dataset;
-- :func:`plot` — the figures of a run's or a sweep's dataset.
+- :func:`plot` — the figures of a run's, a sweep's or a filter study's dataset, or of an output folder.
 
 The science packages (``attitude``, ``orbits``, ``vision``, ``filters``, ``reconstruction``,
 ``formation``, ``chaser``, ``closed_loop``) stay importable on their own: the closed loop can be
-built from its parts without any config (docs/architecture.md).  ``python -m coobs`` is the
-command line.
+built from its parts without any config (docs/architecture.md).  The ``coobs`` command line
+(:mod:`coobs.cli`, also ``python -m coobs``) is a thin layer over these calls.
 """
 
 from __future__ import annotations
