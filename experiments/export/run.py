@@ -88,7 +88,8 @@ def open_run(run: Path | str) -> xr.Dataset:
         raise ValueError(f"run: {_shown(nc)} cannot be read ({exc.strerror or type(exc).__name__})") from None
     kind, study = ds.attrs.get("kind"), ds.attrs.get("study")
     if kind != "formation" or study != "closed_loop":
-        raise ValueError(f"run: {_shown(nc)} holds a {kind!r} {study!r} result; export needs a closed-loop run "
+        what = f"{kind!r} {study!r}" if study is not None else repr(kind)
+        raise ValueError(f"run: {_shown(nc)} holds a {what} result; export needs a closed-loop run "
                          "(kind = 'formation', study = 'closed_loop')")
     return ds
 
