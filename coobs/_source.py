@@ -61,6 +61,9 @@ def config_source(config: ConfigLike) -> Path | dict[str, Any]:
             return bundled_config_path(config)
         if path is not None and path.is_dir():
             raise ConfigError(f"config: {shorten(str(config))} is a folder, not a config file")
+        text = str(config)
+        if "/" in text or "\\" in text or text.endswith(".toml"):
+            raise ConfigError(f"config: file not found: {shorten(text)}")  # a path, not a name
         return bundled_config_path(str(config))  # raises, listing the bundled names
     raise ConfigError("config: must be a TOML file, a bundled config's name, a mapping or a validated "
                       f"config, not {type(config).__name__}")

@@ -123,6 +123,7 @@ def test_version_option_prints_the_distribution_version():
     (["run", "quickstart", "--set", "formation.n_views"], "--set: expected KEY=VALUE"),
     (["run", "quickstart", "--set", "formation.n_views=0"], "formation.n_views: "),
     (["run", "no_such_config"], "config: no file and no bundled config named 'no_such_config'"),
+    (["run", "configs/no_such_file.toml"], "config: file not found: 'configs/no_such_file.toml'"),
 ])
 def test_run_bad_name_or_set_exits_2_in_one_line_and_writes_nothing(tmp_path, monkeypatch, args, message):
     monkeypatch.chdir(tmp_path)
