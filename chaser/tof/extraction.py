@@ -42,6 +42,13 @@ class ExtractionSettings:
         Strict grey threshold of the hysteresis, ``I_peak = grey_peak_frac × W``.
     n_max_factor : float
         ``N_max = n_max_factor × n_markers × (predicted dot area in pixels)``.
+    hole_depth_frac : float or None
+        When more than ``N_max`` pixels pass the grey threshold, the pixels darker than
+        ``hole_depth_frac`` times the grey-level closing of the amplitude around them (dark holes in
+        a bright surface: the dot cores) are kept besides the darkest ``N_max``.  The budget of
+        000 §2.1 is global, and a body face seen at grazing incidence (``cos θ → 0``) is darker than
+        the dots: at 1 m with the plate tilted by about 30°, such faces took the whole budget and the
+        frame was lost ("no marker candidates").  None: the paper's rule alone.
     log_sigma_px : float or None
         LoG scale σ; None: predicted dot radius in pixels / √2 (scale-normalised blob detector).
     log_scales : tuple of float
@@ -91,6 +98,7 @@ class ExtractionSettings:
     max_eccentricity: float = 0.95
     centroid_dilate_px: int = 2
     range_estimator: str = "plane"
+    hole_depth_frac: float | None = 0.25
     depth_edge_m: float = 0.02
     plane_support_factor: float = 3.0
 
@@ -106,6 +114,8 @@ class ExtractionSettings:
             raise ValueError(f"log_scales: must be positive finite factors, got {self.log_scales!r}")
         if self.log_peak_frac < self.log_threshold_frac:
             raise ValueError(f"log_peak_frac: must be >= log_threshold_frac, got {self.log_peak_frac!r}")
+        if self.hole_depth_frac is not None and not 0 < self.hole_depth_frac < 1:
+            raise ValueError(f"hole_depth_frac: must lie in (0, 1) or be None, got {self.hole_depth_frac!r}")
         if int(self.centroid_dilate_px) != self.centroid_dilate_px or self.centroid_dilate_px < 0:
             raise ValueError(f"centroid_dilate_px: must be an integer >= 0, got {self.centroid_dilate_px!r}")
 
@@ -243,8 +253,11 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     if cand.sum() > n_max:
         idx = np.flatnonzero(cand)
         keep = idx[np.argpartition(amp.ravel()[idx], n_max - 1)[:n_max]]
+        holes = cand & _dark_holes(amp, valid, dot_px, s.hole_depth_frac) if s.hole_depth_frac is not None else None
         cand = np.zeros_like(cand)
         cand.ravel()[keep] = True
+        if holes is not None:
+            cand |= holes
     if not cand.any():
         return _empty_detections("no pixels darker than the grey threshold",
                                  ExtractionThresholds(grey=i_t, n_max=n_max, log_sigma_px=sigma))
@@ -349,6 +362,22 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     rho_a = np.asarray(rho)
     pts = points_from_pixel_range(uv_a[:, 0], uv_a[:, 1], rho_a, camera)
     return MarkerDetections(uv_a, rho_a, pts, np.asarray(rho_sig), np.asarray(cnt, int), np.asarray(ecc_out), thr, "")
+
+
+def _dark_holes(amp: np.ndarray, valid: np.ndarray, dot_px: float, depth_frac: float) -> np.ndarray:
+    """Pixels darker than ``depth_frac`` times the grey-level closing of the amplitude around them.
+
+    The closing (dilation then erosion, elliptic disk of radius ``⌈2 r_dot⌉ + 1`` px) fills every
+    dark region narrower than the disk with the brightness of its surroundings: a dot on the plate
+    becomes plate-bright, so its core is a deep *hole*.  A dark surface that borders no-return
+    pixels or extends beyond the disk (a body face seen at grazing incidence, the background) is
+    not filled and gives no hole.  Pixels without a range count as dark (amplitude 0).
+    """
+    a = np.where(valid, amp, 0.0).astype(np.float32)
+    rad = int(np.ceil(2.0 * dot_px)) + 1
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * rad + 1, 2 * rad + 1))
+    closed = cv2.morphologyEx(a, cv2.MORPH_CLOSE, k, borderType=cv2.BORDER_CONSTANT, borderValue=0.0)
+    return valid & (a <= depth_frac * closed)
 
 
 def _dilate(mask: np.ndarray, px: int) -> np.ndarray:
