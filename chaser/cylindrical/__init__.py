@@ -9,6 +9,16 @@ from chaser.cylindrical.attitude import (
     yaw_roll_pitch_from_matrix,
     yaw_roll_pitch_from_sigma,
 )
+from chaser.cylindrical.bound import (
+    AttitudeBound,
+    PointBound,
+    angle_jacobian,
+    attitude_crlb,
+    attitude_jacobian,
+    point_crlb,
+    point_fisher_information,
+    rotation_error_vector,
+)
 from chaser.cylindrical.calibration import (
     ExtrinsicCalibration,
     IntrinsicCalibration,
@@ -72,4 +82,12 @@ __all__ = [
     "ThreePointAttitude",
     "attitude_from_three_points",
     "N_S_BODY",
+    "angle_jacobian",
+    "point_fisher_information",
+    "PointBound",
+    "point_crlb",
+    "AttitudeBound",
+    "attitude_jacobian",
+    "attitude_crlb",
+    "rotation_error_vector",
 ]
