@@ -45,11 +45,26 @@ def plot(dataset: xr.Dataset, fig_dir: Path, *, format: str = "png") -> list[Pat
     legend_below(fig, ncol=3)
     out.append(save(fig, figure_path(fig_dir, "table1_point_errors", format), dpi=120))
 
-    fig, axes = plt.subplots(1, 3, figsize=(10, 4.0), sharey=True, layout="constrained")
+    rot = "attitude_rotation_error_deg" in ds
+    fig, axes = plt.subplots(1, 3 + rot, figsize=(10 + 3.4 * rot, 4.0), layout="constrained")
     err = ds["attitude_error_deg"]
     poses = ds["pose"].values
+    if rot:  # the rotation angle of R_est R_trueᵀ first: no gimbal-lock amplification
+        ax = axes[0]
+        e = ds["attitude_rotation_error_deg"].values
+        for j, pose in enumerate(poses):
+            ax.plot(np.full(e.shape[0], pose), e[:, j], ".", color="C0", alpha=0.4)
+        ax.plot(poses, np.sqrt(np.mean(e**2, axis=0)), "ko", mfc="none", label="RMS over trials")
+        if "attitude_rotation_bound_deg" in ds:
+            ax.plot(poses, ds["attitude_rotation_bound_deg"], "s", color="C2", mfc="none",
+                    label="Cramér–Rao bound (RMS)")
+        ax.set_title("rotation-angle error")
+        ax.set_xlabel("pose")
+        ax.set_ylabel("rotation angle of R_est R_true^T [deg]")
+        ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.18), fontsize=7, frameon=False)
+    euler_axes = axes[rot:]
     for k, name in enumerate(["yaw", "roll", "pitch"]):
-        ax = axes[k]
+        ax = euler_axes[k]
         e = err.sel(angle=name).values
         for j, pose in enumerate(poses):
             ax.plot(np.full(e.shape[0], pose), e[:, j], ".", color="C0", alpha=0.4,
@@ -59,12 +74,16 @@ def plot(dataset: xr.Dataset, fig_dir: Path, *, format: str = "png") -> list[Pat
         lim = {"yaw": 0.20, "roll": 0.12, "pitch": 0.23}[name]
         ax.axhline(lim, color="r", ls=":", lw=1, label="paper maximum")
         ax.axhline(-lim, color="r", ls=":", lw=1)
-        ax.set_title(f"{name} error")
+        ax.set_title(f"{name} error (3-1-2, eq 9-11)")
         ax.set_xlabel("pose")
-    axes[0].set_ylabel("attitude error [deg]")
+    lo = min(ax.get_ylim()[0] for ax in euler_axes)
+    hi = max(ax.get_ylim()[1] for ax in euler_axes)
+    for ax in euler_axes:  # one range for the three Euler panels
+        ax.set_ylim(lo, hi)
+    euler_axes[0].set_ylabel("attitude error [deg]")
     fig.suptitle("004 Table 2 analogue")
-    legend_below(fig, handles=axes[0].get_legend_handles_labels()[0], labels=axes[0].get_legend_handles_labels()[1],
-                 ncol=3)
+    h, lab = euler_axes[0].get_legend_handles_labels()
+    legend_below(fig, handles=h, labels=lab, ncol=3)
     out.append(save(fig, figure_path(fig_dir, "table2_attitude_errors", format), dpi=120))
 
     if "dyn_uv_true_px" in ds:
