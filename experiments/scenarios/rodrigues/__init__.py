@@ -16,11 +16,15 @@ from experiments.scenarios.rodrigues.truth import (
 )
 
 if TYPE_CHECKING:
+    from experiments.scenarios.rodrigues.envelope import sweep_cell
+    from experiments.scenarios.rodrigues.envelope_figures import plot_sweep
     from experiments.scenarios.rodrigues.experiment import SOLVERS, run
     from experiments.scenarios.rodrigues.figures import plot
 
-__all__ = ["Config", "run", "plot", "SOLVERS", "R_HO", "truth_001", "crossing_times_s", "cube_vertices",
+__all__ = ["Config", "run", "plot", "sweep_cell", "plot_sweep", "SOLVERS", "R_HO", "truth_001", "crossing_times_s", "cube_vertices",
            "visible_vertices"]
 
-# run and plot (OpenCV and pycolmap behind them) load on first use
-__getattr__, _, _ = lazy.attach(__name__, submod_attrs={"experiment": ["run", "SOLVERS"], "figures": ["plot"]})
+# run, plot and the sweep (OpenCV and pycolmap behind them) load on first use
+__getattr__, _, _ = lazy.attach(__name__, submod_attrs={"experiment": ["run", "SOLVERS"], "figures": ["plot"],
+                                                           "envelope": ["sweep_cell"],
+                                                           "envelope_figures": ["plot_sweep"]})

@@ -1,5 +1,6 @@
 """The ``rodrigues_001`` config: 001 Table 1 (orbits and attitudes), camera, target, simulation, solver and
-comparison options.
+comparison options; the ``envelope`` study (one point of the working envelope, static random attitudes) and
+an optional ``[sweep]`` table (:class:`experiments.sweep.SweepSpec`) over any of these keys.
 """
 
 from __future__ import annotations
@@ -27,12 +28,15 @@ from experiments.config import (
     Rate_deg_s,
     ScenarioConfig,
     Seed,
+    one_line,
+    shorten,
 )
+from experiments.sweep import SweepSpec
 from orbits.scenario_001 import Table1Orbit
 from orbits.two_body import R_EARTH_M
 
 __all__ = ["Config", "SpacecraftConfig", "CameraConfig", "TargetConfig", "SimulationConfig", "SolverConfig",
-           "ComparisonConfig"]
+           "ComparisonConfig", "EnvelopeConfig"]
 
 
 class SpacecraftConfig(ConfigTable):
@@ -106,10 +110,31 @@ class ComparisonConfig(ConfigTable):
     pycolmap: Flag = True
 
 
+class EnvelopeConfig(ConfigTable):
+    """One point of the working envelope (the ``envelope`` study and its sweep cell).
+
+    The cube (``target_model.cube_edge_m``) sits on the boresight at ``range_m`` in a uniformly random
+    static attitude per trial, seen by ``[camera]`` with ``camera.noise_px``; every solver gets the same
+    frame.  The local solvers (ours, OpenCV iterative) start from the truth turned by
+    ``initial_attitude_error_deg`` about a random axis and moved by ``initial_position_error_frac``
+    times the range in a random direction (a tracker's previous epoch); SQPnP needs no guess.
+    """
+
+    range_m: Length_m = Field(100.0, ge=1.0, le=100_000.0, description="distance camera to target centre")
+    trials: Integer = Field(200, ge=1, le=1_000_000, description="random attitudes of the envelope study")
+    initial_attitude_error_deg: Angle_deg = Field(5.0, ge=0.0, le=60.0)
+    initial_position_error_frac: FiniteFloat = Field(0.02, ge=0.0, le=0.5, description="fraction of range_m")
+
+
 class Config(ScenarioConfig):
-    """``rodrigues_001`` config: 001 Table 1 and the camera, target, solver and comparison options."""
+    """``rodrigues_001`` config: 001 Table 1 and the camera, target, solver and comparison options.
+
+    ``study = "table1"`` (default) is the 6000 s scenario of the paper; ``"envelope"`` one point of the
+    working envelope (:class:`EnvelopeConfig`), the cell of ``coobs sweep``.
+    """
 
     kind: Literal["rodrigues_001"]
+    study: Literal["table1", "envelope"] = "table1"
     seed: Seed = 1
     chaser: SpacecraftConfig = SpacecraftConfig(e=1e-7, i_deg=42.225005, t_node_s=0.013, roll_deg=0.1, pitch_deg=0.1,
                                                 yaw_deg=0.1, roll_rate_deg_s=1e-4, pitch_rate_deg_s=1e-4,
@@ -121,3 +146,32 @@ class Config(ScenarioConfig):
     simulation: SimulationConfig = SimulationConfig()
     solver: SolverConfig = SolverConfig()
     comparison: ComparisonConfig = ComparisonConfig()
+    envelope: EnvelopeConfig = EnvelopeConfig()
+    sweep: SweepSpec | None = None
+
+    @model_validator(mode="after")
+    def _grid_keys(self):
+        """Each swept key must be a config key and each swept value valid on its own."""
+        if self.sweep is None:
+            return self
+        import copy
+
+        from pydantic import ValidationError
+
+        base = self.model_dump(exclude={"sweep"})
+        for key, values in self.sweep.grid_values().items():
+            *parents, leaf = key.split(".")
+            for v in values:
+                raw = copy.deepcopy(base)
+                node = raw
+                for p in parents:
+                    node = node.get(p) if isinstance(node, dict) else None
+                if not isinstance(node, dict) or leaf not in node:
+                    raise ValueError(f"sweep.grid: {key!r} is not a config key")
+                node[leaf] = v
+                try:
+                    type(self).model_validate(raw)
+                except ValidationError as exc:
+                    msg = str(exc.errors(include_url=False)[0]["msg"]).removeprefix("Value error, ")
+                    raise ValueError(one_line(f"sweep.grid: {key} = {shorten(v)}: {msg}")) from None
+        return self

@@ -93,6 +93,9 @@ def _opencv(flag, P, uv, K, guess):
 def run(cfg: Config, *, progress: Callable[[int, int], None] | None = None) -> ScenarioResult:
     """Run the 001 scenario: truth, noisy frames, the five solvers, errors and timings.
 
+    With ``study = "envelope"`` one point of the working envelope instead
+    (:func:`experiments.scenarios.rodrigues.envelope.envelope_run`).
+
     Parameters
     ----------
     cfg : Config
@@ -106,6 +109,11 @@ def run(cfg: Config, *, progress: Callable[[int, int], None] | None = None) -> S
         Per solver and epoch: pose errors in camera and Hill axes, ``ok``, ``failure_reason``, solve
         times; the summary of error statistics per solver.
     """
+    if cfg.study == "envelope":
+        from experiments.scenarios.rodrigues.envelope import envelope_run
+
+        ds, summary = envelope_run(cfg, progress=progress)
+        return ScenarioResult(ds, {"study": "envelope", **summary})
     progress = progress or no_progress
     t_s = np.arange(0.0, cfg.simulation.duration_s + 0.5 * cfg.simulation.step_s, cfg.simulation.step_s)
     n_t = len(t_s)
