@@ -149,6 +149,9 @@ class MarkerDetections:
     pixel_count : (n,) int ndarray
         Pixels in each accepted component.
     eccentricity : (n,) ndarray
+    centroid_sigma_px : (n,) ndarray
+        Standard error of each centroid coordinate (px): ``σ_A sqrt(Σ w_x x²) / Σ w`` with ``σ_A``
+        the robust spread of the amplitudes of the plate ring around the dot (eqs 9–11 propagated).
     thresholds : ExtractionThresholds
     failure_reason : str
         Empty when key points were extracted; otherwise why none were ("all pixels saturated",
@@ -163,6 +166,7 @@ class MarkerDetections:
     eccentricity: np.ndarray
     thresholds: ExtractionThresholds = field(default_factory=ExtractionThresholds)
     failure_reason: str = ""
+    centroid_sigma_px: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def ok(self) -> bool:
@@ -322,7 +326,7 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     ring_in, ring_out = d + 1, d + 3
     sup_px = s.plane_support_factor * r_dot * f_mean / med_r                     # per component
     pad = int(max(ring_out, np.ceil(sup_px[ok].max()))) + 1
-    uv, rho, rho_sig, cnt, ecc_out = [], [], [], [], []
+    uv, uv_sig, rho, rho_sig, cnt, ecc_out = [], [], [], [], [], []
     for lab in accepted:
         sl = objects[lab - 1]
         v0, v1 = max(sl[0].start - pad, 0), min(sl[0].stop + pad, amp.shape[0])
@@ -338,6 +342,11 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
         gv, gu = np.indices(comp.shape, dtype=float)
         uc = float((w * (gu + u0)).sum() / w.sum())
         vc = float((w * (gv + v0)).sum() / w.sum())
+        pair = ring[:, 1:] & ring[:, :-1]                  # amplitude noise from neighbour differences
+        diff = (a_w[:, 1:] - a_w[:, :-1])[pair]
+        sig_a = 1.4826 * float(np.median(np.abs(diff - np.median(diff)))) / np.sqrt(2.0) if diff.size >= 8 else i_local
+        x2 = float(((gu + u0 - uc) ** 2 * support).sum() + ((gv + v0 - vc) ** 2 * support).sum()) / 2.0
+        sig_uv = max(sig_a, 1.0) * np.sqrt(x2) / float(w.sum())
         if s.range_estimator == "mean":
             r_pix = r_w[comp & ok_w]
             if r_pix.size < 2:
@@ -352,6 +361,7 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
                 continue
             rho_i, sig_i = est
         uv.append((uc, vc))
+        uv_sig.append(sig_uv)
         rho.append(rho_i)
         rho_sig.append(sig_i)
         cnt.append(int(count[lab - 1]))
@@ -361,7 +371,8 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     uv_a = np.asarray(uv)
     rho_a = np.asarray(rho)
     pts = points_from_pixel_range(uv_a[:, 0], uv_a[:, 1], rho_a, camera)
-    return MarkerDetections(uv_a, rho_a, pts, np.asarray(rho_sig), np.asarray(cnt, int), np.asarray(ecc_out), thr, "")
+    return MarkerDetections(uv_a, rho_a, pts, np.asarray(rho_sig), np.asarray(cnt, int), np.asarray(ecc_out), thr, "",
+                            np.asarray(uv_sig))
 
 
 def _dark_holes(amp: np.ndarray, valid: np.ndarray, dot_px: float, depth_frac: float) -> np.ndarray:

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from chaser.tof.bound import ml_pose_refinement
 from chaser.tof.extraction import ExtractionSettings, MarkerDetections, extract_markers
 from chaser.tof.matching import (
     MatchSettings,
@@ -83,7 +84,8 @@ def _not_found(failure_reason: str, det: MarkerDetections, labels: np.ndarray | 
 def estimate_tof_pose(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *, matcher: str = "mrf",
                       match_settings: MatchSettings | None = None,
                       extraction: ExtractionSettings | None = None, verify: bool = True,
-                      gate_factor: float = 2.0, weighting: str = "inverse_variance") -> TofPoseResult:
+                      gate_factor: float = 2.0, weighting: str = "inverse_variance",
+                      pose_estimator: str = "svd") -> TofPoseResult:
     """Relative pose of the marker plate from one TOF frame (000 §2–§4, corrected).
 
     Parameters
@@ -102,6 +104,11 @@ def estimate_tof_pose(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     weighting : {"inverse_variance", "uniform"}
         SVD weights ``w_i`` (eq 28): ``1 / σ_i²`` from the range standard error of each key point
         (floored at 0.1 mm), or 1.
+    pose_estimator : {"svd", "ml"}
+        ``"svd"``: the weighted SVD of 000 eqs (27)–(38).  ``"ml"``: the SVD pose refined to the
+        maximum-likelihood pose of the key points' pixels and ranges
+        (:func:`chaser.tof.bound.ml_pose_refinement`, weights from their standard errors), which
+        reaches the Cramér–Rao bound of :func:`chaser.tof.bound.tof_pose_bound`.
 
     Returns
     -------
@@ -110,6 +117,8 @@ def estimate_tof_pose(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     """
     if matcher not in MATCHERS:
         raise ValueError(f"matcher: must be one of {MATCHERS}, got {matcher!r}")
+    if pose_estimator not in ("svd", "ml"):
+        raise ValueError(f"pose_estimator: must be 'svd' or 'ml', got {pose_estimator!r}")
     if weighting not in ("inverse_variance", "uniform"):
         raise ValueError(f"weighting: must be 'inverse_variance' or 'uniform', got {weighting!r}")
     st = match_settings or MatchSettings()
@@ -141,5 +150,10 @@ def estimate_tof_pose(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     fit = weighted_svd_pose(model[labels[sel]], det.points_S[sel], w)
     if fit.singular_values[1] <= 1e-6 * fit.singular_values[0]:
         return _not_found("matched markers are collinear", det, labels)
-    return TofPoseResult(True, "", fit.R_SC, fit.r_CS_S, pitch_yaw_roll_from_matrix(fit.R_SC), labels,
+    R_SC, r_CS_S = fit.R_SC, fit.r_CS_S
+    if pose_estimator == "ml":
+        R_SC, r_CS_S = ml_pose_refinement(R_SC, r_CS_S, model[labels[sel]], det.uv_px[sel], det.range_m[sel],
+                                          camera, np.maximum(det.centroid_sigma_px[sel], 1e-4),
+                                          np.maximum(det.range_sigma_m[sel], 1e-5))
+    return TofPoseResult(True, "", R_SC, r_CS_S, pitch_yaw_roll_from_matrix(R_SC), labels,
                          int(sel.size), float(fit.rms_residual_m), det)
