@@ -23,7 +23,11 @@ from numpy.typing import ArrayLike
 
 from attitude.quaternion import quat_from_matrix
 from chaser.rodrigues_pose.pose import GibbsPose
-from chaser.rodrigues_pose.projection import check_positive, project_focal_plane, projection_jacobian
+from chaser.rodrigues_pose.projection import (
+    check_positive,
+    project_focal_plane,
+    projection_jacobian,
+)
 
 __all__ = ["PoseBound", "pose_crlb"]
 

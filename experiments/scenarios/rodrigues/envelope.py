@@ -177,7 +177,7 @@ def envelope_sweep_cell(cfg: Config) -> SweepCell:
             "crlb_attitude_deg": Metric("deg", long_name="Cramer-Rao RMS attitude angle"),
             "n_points": Metric("1", long_name="visible cube vertices in the image"),
         },
-        coords={"solver": np.array(ENVELOPE_SOLVERS), "reason": np.array(ENVELOPE_REASONS)},
+        coords={"solver": np.array(ENVELOPE_SOLVERS, dtype=object), "reason": np.array(ENVELOPE_REASONS, dtype=object)},
         name="envelope",
     )
 

@@ -90,6 +90,51 @@ def _panels(st: xr.Dataset, rows: list, columns: list, value, *, name: str, supt
     return save(fig, figure_path(fig_dir, name, format))
 
 
+def _cell_maps(s: xr.Dataset, rows: list, suffix: str, fig_dir: Path, format: str) -> list[Path]:
+    """The five map figures of one value of the keys other than range, size and noise."""
+    paths: list[Path] = []
+    pick = lambda r, var, solver="rodrigues": s[var].sel(solver=solver, **r).values  # noqa: E731
+    paths.append(_panels(
+        s, rows, [("along-LOS RMS error [m]", "rms_along_los"), ("across-LOS RMS error [m]", "rms_across_los"),
+                  ("attitude RMS error [deg]", "rms_attitude")],
+        lambda r, k: pick(r, k), name=f"envelope_errors{suffix}", log=True, cmap="viridis", cbar="",
+        suptitle="001 solver (switching) over its envelope: RMS errors over random attitudes", fig_dir=fig_dir,
+        format=format))
+    paths.append(_panels(
+        s, rows, [("along LOS", "ratio_along_los"), ("across LOS", "ratio_across_los"),
+                  ("attitude", "ratio_attitude")],
+        lambda r, k: pick(r, k), name=f"envelope_bound_ratio{suffix}", log=False, cmap="cividis",
+        cbar="RMS error / Cramer-Rao bound", fixed=RATIO_RANGE, fig_dir=fig_dir, format=format,
+        suptitle="001 solver: measured RMS error / Cramer-Rao bound (1 = efficient)"))
+    paths.append(_panels(
+        s, rows, [(sv, sv) for sv in ENVELOPE_SOLVERS],
+        lambda r, k: np.fmax.reduce([pick(r, v, k) for v in ("ratio_along_los", "ratio_across_los",
+                                                              "ratio_attitude")]),
+        name=f"envelope_bound_ratio_solvers{suffix}", log=False, cmap="cividis", fixed=RATIO_RANGE,
+        cbar="worst RMS error / Cramer-Rao bound", fig_dir=fig_dir, format=format,
+        suptitle="worst of the three error/bound ratios per solver, same frames"))
+
+    def fail_text(r, k):
+        f = s["failures"].sel(solver=k, **r)  # (reason, y, x)
+        rate = s["failure_rate"].sel(solver=k, **r).values
+        top = f["reason"].values[f.argmax("reason").values]
+        return np.where(rate > 0, np.vectorize(lambda a, b: f"{a:.2f}\n{_SHORT[b]}", otypes=[str])(rate, top),
+                        "0")
+
+    paths.append(_panels(
+        s, rows, [(sv, sv) for sv in ENVELOPE_SOLVERS], lambda r, k: pick(r, "failure_rate", k),
+        name=f"envelope_failures{suffix}", log=False, cmap="cividis", fixed=(0.0, 1.0),
+        cbar="fraction of trials without a pose", texts=fail_text, fig_dir=fig_dir, format=format,
+        suptitle="no pose returned (fraction; main reason: " + ", ".join(
+            f"{v} = {k}" for k, v in _SHORT.items() if float(s["failures"].sel(reason=k).sum()) > 0) + ")"))
+    paths.append(_panels(
+        s, rows, [(sv, sv) for sv in ENVELOPE_SOLVERS], lambda r, k: pick(r, "gross_rate", k),
+        name=f"envelope_gross_errors{suffix}", log=False, cmap="cividis", fixed=(0.0, 1.0),
+        cbar="fraction of trials", fig_dir=fig_dir, format=format,
+        suptitle=f"gross errors: pose returned with Mahalanobis distance > {GROSS_MAHALANOBIS:g} under the bound"))
+    return paths
+
+
 def plot_sweep(dataset: xr.Dataset, fig_dir: Path, *, format: str = "png") -> list[Path]:
     """Envelope maps of a ``rodrigues_001`` sweep: errors, error/bound, failures and gross errors.
 
@@ -109,45 +154,7 @@ def plot_sweep(dataset: xr.Dataset, fig_dir: Path, *, format: str = "png") -> li
         suffix = "".join(f"_{k}{v:g}" for k, v in sel0.items())
         s = st.sel(sel0) if sel0 else st
         rows = [{_ROW: v} for v in s[_ROW].values.tolist()] if row_dim else [{}]
-        pick = lambda r, var, solver="rodrigues": s[var].sel(solver=solver, **r).values  # noqa: E731
-        paths.append(_panels(
-            s, rows, [("along-LOS RMS error [m]", "rms_along_los"), ("across-LOS RMS error [m]", "rms_across_los"),
-                      ("attitude RMS error [deg]", "rms_attitude")],
-            lambda r, k: pick(r, k), name=f"envelope_errors{suffix}", log=True, cmap="viridis", cbar="",
-            suptitle="001 solver (switching) over its envelope: RMS errors over random attitudes", fig_dir=fig_dir,
-            format=format))
-        paths.append(_panels(
-            s, rows, [("along LOS", "ratio_along_los"), ("across LOS", "ratio_across_los"),
-                      ("attitude", "ratio_attitude")],
-            lambda r, k: pick(r, k), name=f"envelope_bound_ratio{suffix}", log=False, cmap="cividis",
-            cbar="RMS error / Cramer-Rao bound", fixed=RATIO_RANGE, fig_dir=fig_dir, format=format,
-            suptitle="001 solver: measured RMS error / Cramer-Rao bound (1 = efficient)"))
-        paths.append(_panels(
-            s, rows, [(sv, sv) for sv in ENVELOPE_SOLVERS],
-            lambda r, k: np.fmax.reduce([pick(r, v, k) for v in ("ratio_along_los", "ratio_across_los",
-                                                                  "ratio_attitude")]),
-            name=f"envelope_bound_ratio_solvers{suffix}", log=False, cmap="cividis", fixed=RATIO_RANGE,
-            cbar="worst RMS error / Cramer-Rao bound", fig_dir=fig_dir, format=format,
-            suptitle="worst of the three error/bound ratios per solver, same frames"))
-
-        def fail_text(r, k):
-            f = s["failures"].sel(solver=k, **r)  # (reason, y, x)
-            rate = s["failure_rate"].sel(solver=k, **r).values
-            top = f["reason"].values[f.argmax("reason").values]
-            return np.where(rate > 0, np.vectorize(lambda a, b: f"{a:.2f}\n{_SHORT[b]}", otypes=[str])(rate, top),
-                            "0")
-
-        paths.append(_panels(
-            s, rows, [(sv, sv) for sv in ENVELOPE_SOLVERS], lambda r, k: pick(r, "failure_rate", k),
-            name=f"envelope_failures{suffix}", log=False, cmap="cividis", fixed=(0.0, 1.0),
-            cbar="fraction of trials without a pose", texts=fail_text, fig_dir=fig_dir, format=format,
-            suptitle="no pose returned (fraction, main reason: " + ", ".join(
-                f"{v} = {k}" for k, v in _SHORT.items()) + ")"))
-        paths.append(_panels(
-            s, rows, [(sv, sv) for sv in ENVELOPE_SOLVERS], lambda r, k: pick(r, "gross_rate", k),
-            name=f"envelope_gross_errors{suffix}", log=False, cmap="cividis", fixed=(0.0, 1.0),
-            cbar="fraction of trials", fig_dir=fig_dir, format=format,
-            suptitle=f"gross errors: pose returned with Mahalanobis distance > {GROSS_MAHALANOBIS:g} under the bound"))
+        paths += _cell_maps(s, rows, suffix, fig_dir, format)
     totals = st["failures"].sum([d for d in st["failures"].dims if d not in ("solver", "reason")])
     fig, ax = plt.subplots(figsize=(7.5, 3.4), layout="constrained")
     w = 0.8 / len(ENVELOPE_SOLVERS)
