@@ -263,7 +263,7 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
         if holes is not None:
             cand |= holes
     if not cand.any():
-        return _empty_detections("no pixels darker than the grey threshold",
+        return _empty_detections(_why_none(frame, camera, dot_px) or "no pixels darker than the grey threshold",
                                  ExtractionThresholds(grey=i_t, n_max=n_max, log_sigma_px=sigma))
 
     img = amp.astype(np.float32)
@@ -278,12 +278,12 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     thr = ExtractionThresholds(grey=i_t, grey_peak=i_peak, log=j_t, log_peak=j_peak, n_max=n_max,
                                log_sigma_px=sigma)
     if j_max <= 0:
-        return _empty_detections("no marker candidates", thr)
+        return _empty_detections(_why_none(frame, camera, dot_px) or "no marker candidates", thr)
 
     loose = cand & (J >= j_t)
     n_lab, labels = cv2.connectedComponents(loose.astype(np.uint8), connectivity=8, ltype=cv2.CV_32S)
     if n_lab <= 1:
-        return _empty_detections("no marker candidates", thr)
+        return _empty_detections(_why_none(frame, camera, dot_px) or "no marker candidates", thr)
     idx = np.arange(1, n_lab)
     # per-component statistics over the labelled pixels only (bincount / reduceat)
     pv, pu = np.nonzero(labels)
@@ -313,7 +313,7 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
           & (count <= s.area_max_frac * area_pred) & (ecc <= s.max_eccentricity))
     accepted = idx[ok]
     if accepted.size == 0:
-        return _empty_detections("no marker candidates", thr)
+        return _empty_detections(_why_none(frame, camera, dot_px) or "no marker candidates", thr)
 
     if s.range_estimator == "plane":
         # mixed pixels sit on depth edges: exclude pixels whose 3x3 range spread exceeds depth_edge_m
@@ -367,12 +367,24 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
         cnt.append(int(count[lab - 1]))
         ecc_out.append(float(ecc[lab - 1]))
     if not uv:
-        return _empty_detections("no marker candidates", thr)
+        return _empty_detections(_why_none(frame, camera, dot_px) or "no marker candidates", thr)
     uv_a = np.asarray(uv)
     rho_a = np.asarray(rho)
     pts = points_from_pixel_range(uv_a[:, 0], uv_a[:, 1], rho_a, camera)
     return MarkerDetections(uv_a, rho_a, pts, np.asarray(rho_sig), np.asarray(cnt, int), np.asarray(ecc_out), thr, "",
                             np.asarray(uv_sig))
+
+
+def _why_none(frame: TofFrame, camera: TofCamera, dot_px: float) -> str:
+    """Why a frame gave no usable key points: saturation, or dark dots without range, else ""."""
+    valid, sat = np.asarray(frame.valid, bool), np.asarray(frame.saturated, bool)
+    if sat.sum() > 0.05 * (valid | sat).sum():
+        return f"plate saturated ({int(sat.sum())} px above the full well)"
+    holes = ndimage.binary_fill_holes(valid | sat) & ~valid & ~sat      # no-range pixels enclosed by returns
+    if holes.sum() >= 0.5 * np.pi * dot_px**2:
+        return (f"markers below the confidence threshold ({int(holes.sum())} px inside the plate under "
+                f"{camera.amplitude_min_dn:g} DN)")
+    return ""
 
 
 def _dark_holes(amp: np.ndarray, valid: np.ndarray, dot_px: float, depth_frac: float) -> np.ndarray:

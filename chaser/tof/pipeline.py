@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from chaser.tof.bound import ml_pose_refinement
-from chaser.tof.extraction import ExtractionSettings, MarkerDetections, extract_markers
+from chaser.tof.extraction import ExtractionSettings, MarkerDetections, _why_none, extract_markers
 from chaser.tof.matching import (
     MatchSettings,
     match_markers_hungarian,
@@ -126,7 +126,8 @@ def estimate_tof_pose(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     if not det.ok:
         return _not_found(det.failure_reason, det)
     if det.n < 3:
-        return _not_found(f"too few markers detected ({det.n} < 3)", det)
+        why = _why_none(frame, camera, plate.marker_radius_m * camera.fx_px / float(np.nanmedian(frame.range_m)))
+        return _not_found(f"too few markers detected ({det.n} < 3){': ' + why if why else ''}", det)
     model = plate.markers_C
     if matcher == "mrf":
         match = match_markers_mrf(model, det.points_S, settings=st)

@@ -7,6 +7,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
+from experiments.sweep import SweepSpec
 from experiments.config import (
     Angle_deg,
     ConfigTable,
@@ -46,6 +47,9 @@ class TargetConfig(ConfigTable):
 
     distance_m: Length_m = Field(0.7, description="plate origin on the boresight at this z (m)")
     attitude_deg: tuple[Angle_deg, Angle_deg, Angle_deg] = Field((0.0, 0.0, 0.0), description="pitch, yaw, roll (3-2-1)")
+    off_boresight_deg: Angle_deg = Field(0.0, ge=0.0, le=75.0,
+                                         description="envelope cell: extra tilt of the plate normal off the boresight, "
+                                                     "about a random axis in the image plane per frame")
     lateral_offset_m: tuple[Length_m, Length_m] = (0.0, 0.0)
     standoff_m: Length_m = Field(0.05, ge=0.0, le=1.0)
     body_reflectivity: FiniteFloat = Field(0.3, ge=0.0, le=1.0)
@@ -53,10 +57,10 @@ class TargetConfig(ConfigTable):
     @field_validator("distance_m")
     @classmethod
     def _fits(cls, v: float) -> float:
-        # the 0.30 m plate must fit in the 38.8 deg undistorted field of view, and stay inside
-        # the 5.0 m unambiguous range
-        if not 0.45 <= v <= 4.5:
-            raise ValueError("must lie in [0.45, 4.5] m (plate inside the SR4000 field of view and range)")
+        # inside the 5.0 m unambiguous range; below 0.45 m the 0.30 m plate overfills the 38.8 deg
+        # undistorted field of view (markers leave it: the envelope sweep's near edge)
+        if not 0.3 <= v <= 4.5:
+            raise ValueError("must lie in [0.3, 4.5] m (plate centre in the SR4000 field of view, inside its range)")
         return v
 
     @field_validator("attitude_deg")
@@ -105,6 +109,7 @@ class PipelineConfig(ConfigTable):
     gate_factor: FiniteFloat = Field(2.0, gt=0.0, le=20.0, description="verification gate in units of alpha")
     range_estimators: list[Estimator] = ["plane", "mean"]
     weighting: Literal["inverse_variance", "uniform"] = "inverse_variance"
+    pose_estimator: Literal["svd", "ml"] = Field("svd", description="weighted SVD (000 eqs 27-38) or its ML refinement")
 
     @field_validator("range_estimators")
     @classmethod
@@ -124,12 +129,13 @@ class Config(ScenarioConfig):
     target: TargetConfig = TargetConfig()
     pipeline: PipelineConfig = PipelineConfig()
     static: StaticConfig = StaticConfig()
-    sweep: SweepConfig | None = None
+    sweep: SweepConfig | SweepSpec | None = Field(None, description="the attitude-sweep study of coobs run, or the "
+                                                                    "grid of coobs sweep (cell, trials, grid)")
     matching: MatchingConfig | None = None
 
     @model_validator(mode="after")
     def _fov(self):
         half = self.target.distance_m * np.tan(np.arctan(88.0 / 250.0))
-        if max(abs(o) for o in self.target.lateral_offset_m) + 0.15 > half:
+        if max(abs(o) for o in self.target.lateral_offset_m) + (0.15 if self.target.distance_m >= 0.45 else 0.0) > half:
             raise ValueError("target.lateral_offset_m: the plate leaves the field of view at this distance")
         return self

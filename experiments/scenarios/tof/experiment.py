@@ -36,7 +36,7 @@ from chaser.tof import (
     verify_labels,
 )
 from experiments.results import ScenarioResult, no_progress
-from experiments.scenarios.tof.config import MATCHING_CASES, Config
+from experiments.scenarios.tof.config import MATCHING_CASES, Config, SweepConfig
 from vision.tof import CooperativeTarget, default_marker_plate, render_tof_frame, sr4000
 
 __all__ = ["run", "TABLE1_000", "COLUMNS", "table1_stats"]
@@ -101,14 +101,15 @@ def run(cfg: Config, *, progress: Callable[[int, int], None] | None = None) -> S
     R_true = _R_from_pyr_deg(cfg.target.attitude_deg)
 
     n_static = cfg.static.frames
-    n_sweep = 0 if cfg.sweep is None else len(cfg.sweep.axes) * len(cfg.sweep.angles_deg) * cfg.sweep.frames_per_angle
+    n_sweep = 0 if not isinstance(cfg.sweep, SweepConfig) else len(cfg.sweep.axes) * len(cfg.sweep.angles_deg) * cfg.sweep.frames_per_angle
     n_match = 0 if cfg.matching is None else len(cfg.matching.cases)
     total, done = n_static + n_sweep + n_match, 0
 
     def pose(frame, est):
         return estimate_tof_pose(frame, camera, plate, matcher=cfg.pipeline.matcher, match_settings=st,
                                  extraction=ExtractionSettings(range_estimator=est),
-                                 gate_factor=cfg.pipeline.gate_factor, weighting=cfg.pipeline.weighting)
+                                 gate_factor=cfg.pipeline.gate_factor, weighting=cfg.pipeline.weighting,
+                                 pose_estimator=cfg.pipeline.pose_estimator)
 
     # ---- static repeatability (000 Table 1)
     vals = np.full((len(ests), n_static, 6), np.nan)
@@ -149,7 +150,7 @@ def run(cfg: Config, *, progress: Callable[[int, int], None] | None = None) -> S
         summary[f"found_fraction_{est}"] = float(np.mean(reason[e] == ""))
 
     # ---- attitude sweep
-    if cfg.sweep is not None:
+    if isinstance(cfg.sweep, SweepConfig):
         sw = cfg.sweep
         sh = (len(ests), len(sw.axes), len(sw.angles_deg), sw.frames_per_angle)
         s_att, s_pos = np.full(sh, np.nan), np.full(sh, np.nan)
