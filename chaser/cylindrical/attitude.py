@@ -171,9 +171,9 @@ class ThreePointAttitude:
     condition : (...,) ndarray
         Smallest over largest singular value of the Cayley system that was solved.
     ok : (...,) bool ndarray
-        False where the three points are collinear.
+        False where the three points are collinear or not all finite.
     failure_reason : (...,) ndarray of str
-        "" where ``ok``; otherwise why ("collinear points").
+        "" where ``ok``; otherwise why ("collinear points", "non-finite point": a fix that failed).
     """
 
     R_OS: np.ndarray
@@ -214,11 +214,13 @@ def attitude_from_three_points(a: ArrayLike, b: ArrayLike, c: ArrayLike, *, swit
     batch = np.broadcast_shapes(a.shape, b.shape, c.shape)[:-1]
     a, b, c = (np.broadcast_to(v, batch + (3,)).reshape(-1, 3) for v in (a, b, c))
     cp = virtual_point(a, b, c)
+    finite = np.isfinite(a).all(-1) & np.isfinite(b).all(-1) & np.isfinite(c).all(-1)
     ok = np.isfinite(cp).all(-1)
-    safe_cp = np.where(ok[..., None], cp, b + np.array([0.0, 1.0, 0.0]))
-    safe_a = np.where(ok[..., None], a, b + np.array([1.0, 0.0, 0.0]))
-    n1 = safe_cp - b
-    n2 = b - safe_a
+    safe_b = np.where(ok[..., None], b, 0.0)
+    safe_cp = np.where(ok[..., None], cp, safe_b + np.array([0.0, 1.0, 0.0]))
+    safe_a = np.where(ok[..., None], a, safe_b + np.array([1.0, 0.0, 0.0]))
+    n1 = safe_cp - safe_b
+    n2 = safe_b - safe_a
     n_t = np.stack([n1 / np.linalg.norm(n1, axis=-1, keepdims=True),
                     n2 / np.linalg.norm(n2, axis=-1, keepdims=True)], -2)
     n_s = np.broadcast_to(N_S_BODY, n_t.shape)
@@ -254,5 +256,5 @@ def attitude_from_three_points(a: ArrayLike, b: ArrayLike, c: ArrayLike, *, swit
         shape(cp, (3,)),
         shape(np.where(nan, 0.0, cond)),
         shape(ok),
-        shape(np.where(ok, "", "collinear points").astype(object)),
+        shape(np.where(ok, "", np.where(finite, "collinear points", "non-finite point")).astype(object)),
     )

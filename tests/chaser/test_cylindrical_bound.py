@@ -89,3 +89,11 @@ def test_euler_bound_grows_as_one_over_cos_roll_near_the_gimbal_lock_while_the_r
     # yaw error ∝ 1/cos(roll): the ratio between 88.67° and 60° is cos 60° / cos 88.67° ≈ 21.5 (within 35 %)
     assert amplification[2] / amplification[0] == pytest.approx(np.cos(np.deg2rad(60)) / np.cos(np.deg2rad(88.67)),
                                                                  rel=0.35)
+
+
+def test_attitude_of_a_failed_fix_is_reported_not_raised():
+    P, _ = _leds([-22.0581, 59.1990, 6.0103])
+    a = np.stack([P[0], np.full(3, np.nan)])
+    att = attitude_from_three_points(a, P[1], P[2])
+    assert att.ok.tolist() == [True, False]
+    assert att.failure_reason.tolist() == ["", "non-finite point"] and np.isnan(att.R_OS[1]).all()

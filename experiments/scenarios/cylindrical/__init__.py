@@ -15,10 +15,14 @@ from experiments.scenarios.cylindrical.config import (
 )
 
 if TYPE_CHECKING:
+    from experiments.scenarios.cylindrical.envelope_figures import plot_sweep
     from experiments.scenarios.cylindrical.experiment import run
     from experiments.scenarios.cylindrical.figures import plot
+    from experiments.scenarios.cylindrical.kind import sweep_cell
 
-__all__ = ["Config", "run", "plot", "TABLE1_MM", "TABLE2_DEG", "TABLE2_ERR_DEG", "PAPER_MAX_ERR_DEG"]
+__all__ = ["Config", "run", "plot", "sweep_cell", "plot_sweep", "TABLE1_MM", "TABLE2_DEG", "TABLE2_ERR_DEG",
+           "PAPER_MAX_ERR_DEG"]
 
-# run and plot (and the science behind them) load on first use
-__getattr__, _, _ = lazy.attach(__name__, submod_attrs={"experiment": ["run"], "figures": ["plot"]})
+# run, plot, the sweep cell and its figures (and the science behind them) load on first use
+__getattr__, _, _ = lazy.attach(__name__, submod_attrs={"experiment": ["run"], "figures": ["plot"],
+                                                        "kind": ["sweep_cell"], "envelope_figures": ["plot_sweep"]})

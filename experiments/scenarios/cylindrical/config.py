@@ -23,9 +23,10 @@ from experiments.config import (
     Seed,
     Speed_mm_s,
 )
+from experiments.sweep import SweepSpec
 
 __all__ = ["Config", "CameraConfig", "RigConfig", "CalibrationConfig", "PointsConfig", "AttitudeConfig",
-           "DynamicConfig", "TABLE1_MM", "TABLE1_ERR_MM", "TABLE2_DEG", "TABLE2_ERR_DEG", "PAPER_MAX_ERR_DEG",
+           "DynamicConfig", "EnvelopeConfig", "TABLE1_MM", "TABLE1_ERR_MM", "TABLE2_DEG", "TABLE2_ERR_DEG", "PAPER_MAX_ERR_DEG",
            "POSE_167_DEG"]
 
 #: 004 Table 1: tracker coordinates (X, Y, Z) of the 8 test points, mm.
@@ -181,6 +182,33 @@ class DynamicConfig(ConfigTable):
         return self
 
 
+class EnvelopeConfig(ConfigTable):
+    """The ``envelope`` sweep cell: three-LED targets at positions of the measuring volume.
+
+    At every (depth, lateral offset) the config's attitude poses are measured ``trials`` times with
+    one calibration of the cell's rig (calibrated in the cube at ``rig.volume_centre_depth_m``).
+    """
+
+    depths_m: list[Length_m] = Field([2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0], min_length=1, max_length=200,
+                                     description="target centre in front of the baseline (world y)")
+    offsets_m: list[Length_m] = Field([0.0, 0.5, 1.0, 1.5, 2.0], min_length=1, max_length=200,
+                                      description="target centre along the baseline from its middle (world x)")
+
+    @field_validator("depths_m", "offsets_m")
+    @classmethod
+    def _distinct(cls, v):
+        if len(set(v)) != len(v):
+            raise ValueError(f"values are not distinct: {v!r}")
+        return v
+
+    @field_validator("depths_m")
+    @classmethod
+    def _in_front(cls, v):
+        if min(v) <= 0.0:
+            raise ValueError(f"depths must be positive (in front of the baseline), got {min(v)!r}")
+        return v
+
+
 class Config(ScenarioConfig):
     """``cylindrical_004`` config: 004 §4 rig, calibration, Table 1/2 analogues and the dynamic test."""
 
@@ -192,3 +220,5 @@ class Config(ScenarioConfig):
     points: PointsConfig = PointsConfig()
     attitude: AttitudeConfig = AttitudeConfig()
     dynamic: DynamicConfig = DynamicConfig()
+    envelope: EnvelopeConfig = EnvelopeConfig()
+    sweep: SweepSpec | None = None

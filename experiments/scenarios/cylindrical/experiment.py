@@ -73,6 +73,19 @@ def _camera(cfg: CameraConfig) -> CylindricalCamera:
     )
 
 
+def _calibrate(cfg: Config, rig, centre_W: np.ndarray, rng: np.random.Generator):
+    """004 §4 calibration of ``rig``: control points in the cube at ``centre_W``, then :func:`calibrate_system`."""
+    cc = cfg.calibration
+    control = control_points_in_cube(cc.n_control_points, centre_W=centre_W, edge_m=cfg.rig.volume_edge_m, rng=rng)
+    turntable = dict(rail_distance_m=cc.rail_distance_m, alpha_max_deg=cc.alpha_max_deg,
+                     alpha_step_deg=cc.alpha_step_deg, beta_max_deg=cc.beta_max_deg,
+                     rail_step_m=cc.rail_step_mm / 1e3, tracker_distance_m=cc.tracker_distance_m,
+                     turntable_sigma_rad=cc.turntable_sigma_urad * 1e-6,
+                     axis_offset_m=tuple(np.asarray(cc.axis_offset_mm) / 1e3), n_scans=cc.n_scans)
+    return calibrate_system(rig, control, rng=rng, turntable=turntable, n_scans=cc.n_scans,
+                            extrinsic_method=cc.extrinsic_method, method=cfg.camera.spot_method)
+
+
 def _led_body(arm_m: float, angle_deg: float) -> np.ndarray:
     """LEDs a, b, c in the body frame of 004 eq (6) (−x_S ∥ ab), centred on their centroid."""
     th = np.deg2rad(angle_deg)
@@ -125,16 +138,7 @@ def run(cfg: Config, *, progress: Callable[[int, int], None] | None = None) -> S
     rig = paper_rig(baseline_m=cfg.rig.baseline_m, convergence_deg=cfg.rig.convergence_deg,
                     camera=_camera(cfg.camera))
     centre = np.array([cfg.rig.baseline_m / 2, cfg.rig.volume_centre_depth_m, 0.0])
-    cc = cfg.calibration
-    control = control_points_in_cube(cc.n_control_points, centre_W=centre, edge_m=cfg.rig.volume_edge_m,
-                                     rng=rng_cal)
-    turntable = dict(rail_distance_m=cc.rail_distance_m, alpha_max_deg=cc.alpha_max_deg,
-                     alpha_step_deg=cc.alpha_step_deg, beta_max_deg=cc.beta_max_deg,
-                     rail_step_m=cc.rail_step_mm / 1e3, tracker_distance_m=cc.tracker_distance_m,
-                     turntable_sigma_rad=cc.turntable_sigma_urad * 1e-6,
-                     axis_offset_m=tuple(np.asarray(cc.axis_offset_mm) / 1e3), n_scans=cc.n_scans)
-    cal = calibrate_system(rig, control, rng=rng_cal, turntable=turntable, n_scans=cc.n_scans,
-                           extrinsic_method=cc.extrinsic_method, method=method)
+    cal = _calibrate(cfg, rig, centre, rng_cal)
     cams = cal.cameras
     done += 2
     progress(done, total)
