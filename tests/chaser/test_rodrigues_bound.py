@@ -20,8 +20,8 @@ R_CT = matrix_from_quat(Q_CT)
 R_TC_C = np.array([0.3, -0.2, 100.0])
 
 
-
 def _visible(R, r, edge=2.0):
+    """Vertices with an adjacent face turned to the camera (back-face culling), as the scenario's truth."""
     c_T = -R.T @ r
     V = CUBE_T * edge / 2.0
     vis = np.zeros(8, bool)
