@@ -9,8 +9,19 @@ from scipy.spatial.transform import Rotation
 from attitude.euler import matrix_from_euler
 from attitude.matrix import rotation_angle
 from chaser.tof import estimate_tof_pose, weighted_svd_pose
-from chaser.tof.bound import ml_pose_refinement, measurement_model, sr4000_marker_noise, tof_pose_bound
-from vision.tof import CooperativeTarget, default_marker_plate, points_from_pixel_range, render_tof_frame, sr4000
+from chaser.tof.bound import (
+    measurement_model,
+    ml_pose_refinement,
+    sr4000_marker_noise,
+    tof_pose_bound,
+)
+from vision.tof import (
+    CooperativeTarget,
+    default_marker_plate,
+    points_from_pixel_range,
+    render_tof_frame,
+    sr4000,
+)
 
 CAM = sr4000()
 PLATE = default_marker_plate()

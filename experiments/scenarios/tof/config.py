@@ -7,7 +7,6 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from experiments.sweep import SweepSpec
 from experiments.config import (
     Angle_deg,
     ConfigTable,
@@ -17,6 +16,7 @@ from experiments.config import (
     ScenarioConfig,
     Seed,
 )
+from experiments.sweep import SweepSpec
 
 __all__ = ["Config", "MATCHING_CASES", "MATCHERS", "CameraConfig", "TargetConfig", "StaticConfig", "SweepConfig",
            "MatchingConfig", "PipelineConfig"]

@@ -153,10 +153,15 @@ def envelope_figures(ds: xr.Dataset, fig_dir: Path, *, format: str = "png") -> l
     x, y = "distance_m", "off_boresight_deg"
     xl, yl = "distance [m]", "off-boresight angle [deg]"
     st = _cell_stats(ds)
-    xs, ys = ds[x].values, ds[y].values
+    xv, ys = ds[x].values, ds[y].values
+    xs = np.arange(len(xv), dtype=float)          # one column per distance (the grid is not uniform)
 
     def m(da):
         return da.transpose(y, x).values
+
+    def ticks(axs):
+        for ax in np.ravel(axs):
+            ax.set_xticks(xs, [f"{v:g}" for v in xv])
 
     paths = []
     fig, axes = plt.subplots(2, 2, figsize=(12, 8.5), layout="constrained")
@@ -169,18 +174,21 @@ def envelope_figures(ds: xr.Dataset, fig_dir: Path, *, format: str = "png") -> l
     plot_map(m(st["ratio"]), xs, ys, ax=axes[1, 1], vmin=1.0, vmax=10.0, cmap="viridis", xlabel=xl, ylabel=yl,
              title="RMS attitude error / Cramer-Rao bound", cbar_label="error / bound [1]", annotate=True,
              fmt="{:.1f}")
+    ticks(axes)
     fig.suptitle(f"000 TOF pose envelope (SR4000 model), {ds.sizes['trial']} frames per cell")
     paths.append(save(fig, figure_path(fig_dir, "tof_envelope", format)))
 
     cls = np.vectorize(reason_class, otypes=[object])(ds["failure_reason"].values.astype(str))
     r_ax = ds["failure_reason"].dims.index("trial")
-    fig, axes = plt.subplots(1, len(REASON_CLASSES), figsize=(4.0 * len(REASON_CLASSES), 3.8), layout="constrained")
-    for ax, c in zip(axes, REASON_CLASSES, strict=True):
+    fig, axes = plt.subplots(2, 3, figsize=(14, 8), layout="constrained")
+    axes[1, 2].set_axis_off()
+    for ax, c in zip(axes.ravel(), REASON_CLASSES, strict=False):
         frac = 100.0 * (cls == c).mean(axis=r_ax)
         da = xr.DataArray(frac, dims=[d for d in ds["failure_reason"].dims if d != "trial"])
         plot_map(m(da), xs, ys, ax=ax, vmin=0.0, vmax=100.0, cmap="cividis", xlabel=xl, ylabel=yl, title=c,
                  annotate=True, fmt="{:.0f}", colorbar=False)
-    fig.colorbar(axes[0].collections[0], ax=axes.tolist(), label="frames lost [%]")
+    ticks(axes.ravel()[:len(REASON_CLASSES)])
+    fig.colorbar(axes[0, 0].collections[0], ax=axes.ravel().tolist(), label="frames lost [%]")
     fig.suptitle("why frames are lost, by failure class (pipeline failure_reason)")
     paths.append(save(fig, figure_path(fig_dir, "tof_envelope_failures", format)))
     return paths
