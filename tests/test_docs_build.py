@@ -79,11 +79,13 @@ def test_config_reference_lists_every_key_of_every_shipped_config(rows):
 
 def _field(model: type[pydantic.BaseModel], key: str) -> FieldInfo:
     """The pydantic field of a dotted key (``a.b``, ``a[].b``) of a config model."""
+    models = [model]
     info = None
     for part in key.split("."):
-        if info is not None:
-            model = next(m for m in _classes(info.annotation) if issubclass(m, pydantic.BaseModel))
-        info = model.model_fields[part.removesuffix("[]")]
+        if info is not None:  # a union of tables (``SweepConfig | SweepSpec``): the one holding the key
+            models = [m for m in _classes(info.annotation) if issubclass(m, pydantic.BaseModel)]
+        name = part.removesuffix("[]")
+        info = next(m.model_fields[name] for m in models if name in m.model_fields)
     return info
 
 
