@@ -39,6 +39,7 @@ from chaser.rodrigues_pose import (
     solve_pose_rodrigues,
 )
 from experiments.scenarios.rodrigues.config import Config
+from experiments.scenarios.rodrigues.opencv_pnp import solve_pnp
 from experiments.scenarios.rodrigues.truth import cube_vertices, visible_vertices
 from experiments.sweep import Metric, SweepCell, cell_seed_sequences, child_seeds
 
@@ -54,22 +55,6 @@ ENVELOPE_REASONS = FAILURE_REASONS + ("opencv_failed", "opencv_error")
 #: A returned pose whose Mahalanobis distance ``√(eᵀ F e)`` under the bound exceeds this is a gross
 #: error (a wrong minimum): for an efficient Gaussian estimator ``P(χ²₆ > 36) ≈ 3e-6``.
 GROSS_MAHALANOBIS = 6.0
-
-
-def _opencv(flag: int, P: np.ndarray, uv: np.ndarray, K: np.ndarray, guess: tuple | None) -> tuple:
-    """One ``cv2.solvePnP`` call → ``(R_CT, r_TC_C, reason)``; ``None`` poses on failure."""
-    if len(P) < (4 if flag == cv2.SOLVEPNP_ITERATIVE else 3):
-        return None, None, "too_few_points"
-    try:
-        if guess is None:
-            ok, rvec, tvec = cv2.solvePnP(P, uv, K, None, flags=flag)
-        else:
-            ok, rvec, tvec = cv2.solvePnP(P, uv, K, None, guess[0].copy(), guess[1].copy(), True, flags=flag)
-    except cv2.error:
-        return None, None, "opencv_error"
-    if not ok or not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
-        return None, None, "opencv_failed"
-    return cv2.Rodrigues(rvec)[0], tvec.ravel(), ""
 
 
 def envelope_trials(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> dict[str, np.ndarray]:
@@ -129,9 +114,9 @@ def envelope_trials(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> dic
         P, u = cube[vis[k]], np.ascontiguousarray(uv[k, vis[k]])
         for s, flag, guess in ((1, cv2.SOLVEPNP_SQPNP, None),
                                (2, cv2.SOLVEPNP_ITERATIVE, (cv2.Rodrigues(R0[k])[0], r0[k].reshape(3, 1)))):
-            Rk, rk, why = _opencv(flag, P, u, K, guess)
+            rvec, tvec, why = solve_pnp(flag, P, u, K, guess)
             if why == "":
-                R_est[k, s], r_est[k, s] = Rk, rk
+                R_est[k, s], r_est[k, s] = cv2.Rodrigues(rvec)[0], tvec.ravel()
             reason[k, s] = why
 
     ok = reason == ""

@@ -48,6 +48,7 @@ from chaser.rodrigues_pose import (
 )
 from experiments.results import ScenarioResult, no_progress
 from experiments.scenarios.rodrigues.config import Config
+from experiments.scenarios.rodrigues.opencv_pnp import solve_pnp
 from experiments.scenarios.rodrigues.truth import (
     crossing_times_s,
     cube_vertices,
@@ -72,22 +73,6 @@ class _Timer:
 
     def __exit__(self, *exc):
         self.dt = time.perf_counter() - self.t0
-
-
-def _opencv(flag, P, uv, K, guess):
-    """One OpenCV solvePnP call; returns (R_CT, t, reason)."""
-    if len(P) < (4 if flag == cv2.SOLVEPNP_ITERATIVE else 3):
-        return None, None, "too_few_points"
-    try:
-        if guess is None:
-            ok, rvec, tvec = cv2.solvePnP(P, uv, K, None, flags=flag)
-        else:
-            ok, rvec, tvec = cv2.solvePnP(P, uv, K, None, guess[0].copy(), guess[1].copy(), True, flags=flag)
-    except cv2.error:
-        return None, None, "opencv_error"
-    if not ok:
-        return None, None, "not_converged"
-    return (rvec, tvec), tvec.ravel(), ""
 
 
 def run(cfg: Config, *, progress: Callable[[int, int], None] | None = None) -> ScenarioResult:
@@ -178,13 +163,13 @@ def run(cfg: Config, *, progress: Callable[[int, int], None] | None = None) -> S
         if cfg.comparison.opencv:
             for s, flag, guess in ((2, cv2.SOLVEPNP_SQPNP, None), (3, cv2.SOLVEPNP_ITERATIVE, cv_guess)):
                 with _Timer() as tm:
-                    sol, tvec, why = _opencv(flag, P, uv, K, guess)
+                    rvec, tvec, why = solve_pnp(flag, P, uv, K, guess, failed_reason="not_converged")
                 solve_time[s, k] = tm.dt
                 reason[s, k] = why
-                if sol is not None:
-                    R_est[s, k], r_est[s, k] = cv2.Rodrigues(sol[0])[0], tvec
+                if rvec is not None:
+                    R_est[s, k], r_est[s, k] = cv2.Rodrigues(rvec)[0], tvec.ravel()
                     if s == 3:
-                        cv_guess = sol
+                        cv_guess = (rvec, tvec)
         if cfg.comparison.pycolmap:
             col_opts.ransac.random_seed = int(colmap_rng.integers(0, 2**31 - 1))
             with _Timer() as tm:
