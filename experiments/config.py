@@ -228,6 +228,38 @@ class ScenarioConfig(ConfigTable):
 
     kind: str
 
+    def check_swept_values(self, table: str = "sweep") -> None:
+        """Each value of the ``table`` grid must give a valid config on its own.
+
+        Combinations are checked by the sweep (:func:`load_cell_configs`); this catches a bad value
+        at validation, naming it.  Call it from a kind's ``model_validator(mode="after")``.
+
+        Raises
+        ------
+        ValueError
+            ``sweep.grid: <key> = <value>: <why>`` (one line), or ``sweep.grid: '<key>' is not a
+            config key``.
+        """
+        spec = getattr(self, table, None)
+        if spec is None:
+            return
+        base = self.model_dump(exclude={table})
+        for key, values in spec.grid_values().items():
+            *parents, leaf = key.split(".")
+            for value in values:
+                raw = copy.deepcopy(base)
+                node: Any = raw
+                for part in parents:
+                    node = node.get(part) if isinstance(node, dict) else None
+                if not isinstance(node, dict) or leaf not in node:
+                    raise ValueError(f"{table}.grid: {key!r} is not a config key")
+                node[leaf] = value
+                try:
+                    type(self).model_validate(raw)
+                except pydantic.ValidationError as exc:
+                    msg = str(exc.errors(include_url=False)[0]["msg"]).removeprefix("Value error, ")
+                    raise ValueError(one_line(f"{table}.grid: {key} = {shorten(value)}: {msg}")) from None
+
 
 _KEY_AT_START = re.compile(r"([A-Za-z_]\w*(?:\.\w+)*): (.*)", re.DOTALL)
 _PREFIXES = ("Value error, ", "Assertion failed, ")

@@ -37,7 +37,6 @@ from experiments.config import (
     ScenarioConfig,
     Seed,
     Speed_m_s,
-    one_line,
     shorten,
 )
 from experiments.sweep import SweepSpec
@@ -360,39 +359,12 @@ class Config(ScenarioConfig):
 
     @model_validator(mode="after")
     def _consistent(self) -> Config:
-        if self.sweep is not None:
-            self._check_grid_values()
+        self.check_swept_values()
         hold = self.estimator.convergence_hold_s
         if self.study in ("ekf", "closed_loop") and hold > self.time.duration_s:
             raise ValueError(f"estimator.convergence_hold_s: {hold:g} s exceeds time.duration_s "
                              f"{self.time.duration_s:g}")
         return self
-
-    def _check_grid_values(self) -> None:
-        """Each swept value must give a valid config on its own (combinations are checked by the sweep)."""
-        import copy
-
-        from pydantic import ValidationError
-
-        base = self.model_dump(exclude={"sweep"})
-        for key, values in self.sweep.grid_values().items():
-            for v in values:
-                raw = copy.deepcopy(base)
-                node = raw
-                parts = key.split(".")
-                for p in parts[:-1]:
-                    if not isinstance(node.get(p), dict):
-                        raise ValueError(f"sweep.grid: {key!r} is not a config key")
-                    node = node[p]
-                if parts[-1] not in node:
-                    raise ValueError(f"sweep.grid: {key!r} is not a config key")
-                node[parts[-1]] = v
-                try:
-                    type(self).model_validate(raw)
-                except ValidationError as exc:
-                    err = exc.errors(include_url=False)[0]
-                    msg = str(err["msg"]).removeprefix("Value error, ")
-                    raise ValueError(one_line(f"sweep.grid: {key} = {shorten(v)}: {msg}")) from None
 
     def inertia(self) -> np.ndarray:
         """Target inertia tensor (3, 3), kg·m²."""

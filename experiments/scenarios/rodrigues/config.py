@@ -28,8 +28,6 @@ from experiments.config import (
     Rate_deg_s,
     ScenarioConfig,
     Seed,
-    one_line,
-    shorten,
 )
 from experiments.sweep import SweepSpec
 from orbits.scenario_001 import Table1Orbit
@@ -152,26 +150,5 @@ class Config(ScenarioConfig):
     @model_validator(mode="after")
     def _grid_keys(self):
         """Each swept key must be a config key and each swept value valid on its own."""
-        if self.sweep is None:
-            return self
-        import copy
-
-        from pydantic import ValidationError
-
-        base = self.model_dump(exclude={"sweep"})
-        for key, values in self.sweep.grid_values().items():
-            *parents, leaf = key.split(".")
-            for v in values:
-                raw = copy.deepcopy(base)
-                node = raw
-                for p in parents:
-                    node = node.get(p) if isinstance(node, dict) else None
-                if not isinstance(node, dict) or leaf not in node:
-                    raise ValueError(f"sweep.grid: {key!r} is not a config key")
-                node[leaf] = v
-                try:
-                    type(self).model_validate(raw)
-                except ValidationError as exc:
-                    msg = str(exc.errors(include_url=False)[0]["msg"]).removeprefix("Value error, ")
-                    raise ValueError(one_line(f"sweep.grid: {key} = {shorten(v)}: {msg}")) from None
+        self.check_swept_values()
         return self
