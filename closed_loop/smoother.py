@@ -1,0 +1,244 @@
+"""A factor-graph smoother of the target's attitude, rate and inertia shape (gtsam, iSAM2).
+
+States: the attitude at every epoch (``Y_k = R_TN(k)``), the body rate ``ω_k`` and the inertia
+shape (:class:`closed_loop.torque_free_factor.InertiaShape`: principal axes ``R_TP`` and two
+log-ratios).  Factors:
+
+* a prior on the first epoch (the first frame defines the body frame, flag P003-14a,
+  docs/papers.md#p003-14a) and on the inertia shape;
+* torque-free dynamics between consecutive epochs (003 eq 25–27,
+  :func:`closed_loop.torque_free_factor.torque_free_factor`) with a small process noise;
+* one relative rotation per accepted registration, to the previous epoch, to a keyframe or a
+  loop closure: ``R_NT(k) R_NT(j)ᵀ = R_NH(k) ΔR_H R_NH(j)ᵀ`` (003 eq 31–32 carried to N), a
+  :class:`gtsam.BetweenFactorRot3` on ``Y`` with a Huber-robust noise of the registration's
+  covariance, after a χ² gate on its innovation against the current estimate.
+
+:meth:`AttitudeSmoother.update` runs one iSAM2 step (online); :meth:`AttitudeSmoother.batch`
+re-solves the whole graph with Levenberg–Marquardt (analysis).  Covariances are iSAM2's marginals.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import gtsam
+import numpy as np
+from gtsam.symbol_shorthand import A, L, W, Y
+from scipy.stats import chi2
+
+from closed_loop.torque_free_factor import InertiaShape, propagate_batch, torque_free_factor
+
+__all__ = ["AttitudeSmoother", "SmootherSettings", "GateResult"]
+
+
+@dataclass(frozen=True)
+class SmootherSettings:
+    """Noise and solver settings of :class:`AttitudeSmoother`.
+
+    Attributes
+    ----------
+    estimate_inertia : bool
+        Estimate the inertia shape (5 parameters) from a broad prior; else hold it at the given tensor.
+    inertia_prior_sigma_log : float
+        σ of the prior on each log-ratio when estimated.
+    inertia_prior_sigma_axes_rad : float
+        σ of the prior on the principal-axes rotation when estimated, rad.
+    process_sigma_attitude_rad : float
+        Per-second σ of the attitude process noise (un-modelled torque), rad/√s.
+    process_sigma_rate_rad_s : float
+        Per-second σ of the rate process noise, rad/s/√s.
+    gate_probability : float
+        χ²₃ quantile of the innovation gate on every relative rotation.
+    huber_k : float
+        Huber threshold (whitened units) of the relative-rotation factors.
+    relinearize_threshold : float
+        iSAM2 relinearisation threshold.
+    relinearize_skip : int
+        iSAM2 checks for relinearisation every this many updates.
+    """
+
+    estimate_inertia: bool = True
+    inertia_prior_sigma_log: float = 1.0
+    inertia_prior_sigma_axes_rad: float = 1.0
+    process_sigma_attitude_rad: float = 1e-6
+    process_sigma_rate_rad_s: float = 1e-7
+    gate_probability: float = 0.999
+    huber_k: float = 3.0
+    relinearize_threshold: float = 1e-3
+    relinearize_skip: int = 5
+
+
+@dataclass(frozen=True)
+class GateResult:
+    """The verdict on one relative rotation.
+
+    Attributes
+    ----------
+    accepted : bool
+    chi2 : float
+        Squared Mahalanobis norm of the innovation.
+    threshold : float
+    """
+
+    accepted: bool
+    chi2: float
+    threshold: float
+
+
+def _rot(R: np.ndarray) -> gtsam.Rot3:
+    return gtsam.Rot3(np.asarray(R, dtype=float))
+
+
+@dataclass
+class AttitudeSmoother:
+    """iSAM2 over the states of a tumbling target (module docstring).
+
+    Build it with the inertia tensor used as the prior's mean (or the known tensor) and
+    :meth:`start` it at the first epoch; then for each new epoch :meth:`add_epoch`, gate and add
+    the registrations (:meth:`add_relative`) and :meth:`update`.
+    """
+
+    J_prior_kg_m2: np.ndarray
+    settings: SmootherSettings = field(default_factory=SmootherSettings)
+
+    def __post_init__(self) -> None:
+        p = gtsam.ISAM2Params()
+        p.setRelinearizeThreshold(self.settings.relinearize_threshold)
+        p.relinearizeSkip = int(self.settings.relinearize_skip)
+        p.setFactorization("QR")
+        self._isam = gtsam.ISAM2(p)
+        self._graph = gtsam.NonlinearFactorGraph()
+        self._values = gtsam.Values()
+        self._all = gtsam.NonlinearFactorGraph()
+        self._t: list[float] = []
+        self._est = gtsam.Values()
+
+    # ---------------------------------------------------------------- building
+    def start(self, t_s: float, R_NT0: np.ndarray, cov_attitude_T: np.ndarray, omega_TN_T0_rad_s: np.ndarray,
+              cov_omega_T: np.ndarray) -> None:
+        """Priors on the first epoch and the inertia shape.
+
+        Parameters
+        ----------
+        t_s : float
+        R_NT0 : ndarray (3, 3)
+            Prior mean of the first attitude.
+        cov_attitude_T : ndarray (3, 3)
+            Its covariance as a body-frame rotation-vector error, rad².
+        omega_TN_T0_rad_s : ndarray (3,)
+        cov_omega_T : ndarray (3, 3)
+            Rate covariance, (rad/s)².
+        """
+        s = self.settings
+        R0 = np.asarray(R_NT0, dtype=float)
+        # body-frame error a (R = R̂ Exp(a)) is the tangent −R̂ ε of Y = R_TN: cov_ε = R̂ cov_a R̂ᵀ
+        cov_eps = R0 @ np.asarray(cov_attitude_T) @ R0.T
+        shape = InertiaShape.from_tensor(self.J_prior_kg_m2)
+        g, v = self._graph, self._values
+        g.add(gtsam.PriorFactorRot3(Y(0), _rot(R0.T), gtsam.noiseModel.Gaussian.Covariance(cov_eps)))
+        g.add(gtsam.PriorFactorVector(W(0), np.asarray(omega_TN_T0_rad_s, float),
+                                      gtsam.noiseModel.Gaussian.Covariance(np.asarray(cov_omega_T, float))))
+        sa, sl = (s.inertia_prior_sigma_axes_rad, s.inertia_prior_sigma_log) if s.estimate_inertia else (1e-9, 1e-9)
+        g.add(gtsam.PriorFactorRot3(A(0), _rot(shape.R_TP), gtsam.noiseModel.Isotropic.Sigma(3, sa)))
+        g.add(gtsam.PriorFactorVector(L(0), shape.log_ratios, gtsam.noiseModel.Isotropic.Sigma(2, sl)))
+        v.insert(Y(0), _rot(R0.T))
+        v.insert(W(0), np.asarray(omega_TN_T0_rad_s, float))
+        v.insert(A(0), _rot(shape.R_TP))
+        v.insert(L(0), shape.log_ratios)
+        self._t = [float(t_s)]
+        self.update()
+
+    @property
+    def n_epochs(self) -> int:
+        """Epochs in the graph."""
+        return len(self._t)
+
+    def inertia(self) -> InertiaShape:
+        """The current estimate of the inertia shape."""
+        return InertiaShape(R_TP=self._est.atRot3(A(0)).matrix(), log_ratios=self._est.atVector(L(0)))
+
+    def add_epoch(self, t_s: float) -> int:
+        """A new epoch joined to the last by the dynamics factor, initialised by propagation; its index."""
+        k = len(self._t)
+        dt = float(t_s) - self._t[-1]
+        if not dt > 0:
+            raise ValueError(f"t_s: epochs must increase, got {t_s} after {self._t[-1]}")
+        s = self.settings
+        sig = np.concatenate([np.full(3, s.process_sigma_attitude_rad), np.full(3, s.process_sigma_rate_rad_s)])
+        noise = gtsam.noiseModel.Diagonal.Sigmas(sig * np.sqrt(dt))
+        n_sub = max(1, int(np.ceil(dt / 0.5)))
+        self._graph.add(torque_free_factor(noise, (Y(k - 1), W(k - 1), Y(k), W(k), A(0), L(0)), dt,
+                                           n_substeps=n_sub))
+        R, w = self.estimate(k - 1)
+        Rp, wp = propagate_batch(R[None], w[None], self.inertia().J_T[None], dt, n_sub)
+        self._values.insert(Y(k), _rot(Rp[0].T))
+        self._values.insert(W(k), wp[0])
+        self._t.append(float(t_s))
+        return k
+
+    def gate(self, j: int, k: int, dR_N: np.ndarray, cov_N: np.ndarray) -> GateResult:
+        """χ² test of a relative rotation ``R_NT(k) R_NT(j)ᵀ ≈ dR_N`` against the current estimate.
+
+        The innovation ``Log(dR_N R̂ᵀ)`` is compared with ``cov_N`` plus the estimate's
+        ``Σ_k + ΔR Σ_j ΔRᵀ`` (marginals, correlation ignored: conservative for nearby epochs).
+        """
+        Rk, _ = self.estimate(k)
+        Rj, _ = self.estimate(j)
+        dR_est = Rk @ Rj.T
+        nu = gtsam.Rot3.Logmap(_rot(np.asarray(dR_N) @ dR_est.T))
+        S = np.asarray(cov_N) + self._isam.marginalCovariance(Y(k)) + dR_est @ self._isam.marginalCovariance(Y(j)) @ dR_est.T
+        try:
+            c2 = float(nu @ np.linalg.solve(S, nu))
+        except np.linalg.LinAlgError:
+            c2 = float("inf")
+        thr = float(chi2.ppf(self.settings.gate_probability, 3))
+        return GateResult(accepted=bool(np.isfinite(c2) and c2 <= thr), chi2=c2, threshold=thr)
+
+    def add_relative(self, j: int, k: int, dR_N: np.ndarray, cov_N: np.ndarray) -> None:
+        """A relative-rotation factor ``R_NT(k) R_NT(j)ᵀ = dR_N`` with left N-frame covariance ``cov_N`` (rad²).
+
+        Call :meth:`gate` first; this adds unconditionally (Huber-robust).
+        """
+        cov = 0.5 * (np.asarray(cov_N, float) + np.asarray(cov_N, float).T)
+        base = gtsam.noiseModel.Gaussian.Covariance(cov)
+        noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(self.settings.huber_k), base)
+        # Y_jᵀ Y_k = R_NT(j) R_NT(k)ᵀ = dR_Nᵀ; its right error is the (negated) left error of dR_N
+        self._graph.add(gtsam.BetweenFactorRot3(Y(j), Y(k), _rot(np.asarray(dR_N).T), noise))
+
+    def update(self) -> None:
+        """One iSAM2 step with the factors and variables added since the last."""
+        self._isam.update(self._graph, self._values)
+        self._all.push_back(self._graph)
+        self._graph = gtsam.NonlinearFactorGraph()
+        self._values = gtsam.Values()
+        self._est = self._isam.calculateEstimate()
+
+    # ---------------------------------------------------------------- reading
+    def estimate(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(R_NT (3, 3), ω_T (3,))`` at epoch ``k`` (the last update's estimate)."""
+        if self._values.exists(Y(k)):
+            return self._values.atRot3(Y(k)).matrix().T, self._values.atVector(W(k))
+        return self._est.atRot3(Y(k)).matrix().T, self._est.atVector(W(k))
+
+    def covariance_T(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Marginal covariances at epoch ``k``: body-frame attitude error (rad²) and rate (rad²/s²)."""
+        R, _ = self.estimate(k)
+        c_eps = self._isam.marginalCovariance(Y(k))
+        return R.T @ c_eps @ R, self._isam.marginalCovariance(W(k))
+
+    def batch(self) -> tuple[np.ndarray, np.ndarray, InertiaShape]:
+        """Levenberg–Marquardt on the whole graph from the iSAM2 estimate (the smoothed solution).
+
+        Returns
+        -------
+        R_NT : ndarray (T, 3, 3)
+        omega_T : ndarray (T, 3)
+        inertia : InertiaShape
+        """
+        params = gtsam.LevenbergMarquardtParams()
+        params.setMaxIterations(50)
+        res = gtsam.LevenbergMarquardtOptimizer(self._all, self._est, params).optimize()
+        T = self.n_epochs
+        R = np.stack([res.atRot3(Y(k)).matrix().T for k in range(T)])
+        w = np.stack([res.atVector(W(k)) for k in range(T)])
+        return R, w, InertiaShape(R_TP=res.atRot3(A(0)).matrix(), log_ratios=res.atVector(L(0)))

@@ -1,0 +1,203 @@
+"""Torque-free rigid-body dynamics as a gtsam factor between two epochs, with unknown inertia.
+
+The target's body frame T is the first frame's (flag P003-14a, docs/papers.md#p003-14a), not its
+principal frame, so its inertia tensor in T is a full symmetric matrix.  Only its shape enters
+Euler's torque-free equation (003 eq 27, ``J ω̇ = −ω × J ω``), so it is described by five numbers:
+the orientation of the principal axes ``R_TP`` (a rotation, 3 parameters) and the logarithms of two
+principal-moment ratios ``l = (ln J₂/J₁, ln J₃/J₁)``:
+
+.. math::  J_T = R_{TP}\\,\\mathrm{diag}(1, e^{l_1}, e^{l_2})\\,R_{TP}^\\mathsf{T}.
+
+Variables of the graph (gtsam keys): ``Y_k = R_TN(k)`` (:class:`gtsam.Rot3`, the transpose of the
+attitude ``R_NT`` so that a registered increment is a plain :class:`gtsam.BetweenFactorRot3`),
+``ω_k`` (body rate, rad/s, ``Vector3``), ``R_TP`` (``Rot3``) and ``l`` (``Vector2``).
+
+The factor compares epoch ``k+1`` with the RK4 propagation of epoch ``k`` (003 eq 25–27):
+
+.. math::
+    r = \\begin{bmatrix} \\mathrm{Log}(\\hat R_{NT}(k{+}1)^\\mathsf{T} R_{NT}(k{+}1)) \\\\
+                         \\omega_{k+1} - \\hat\\omega_{k+1} \\end{bmatrix}
+
+with a small process noise.  Its Jacobians are finite differences of one batched RK4 call (the
+nominal state and its 11 perturbations propagated together).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from attitude.batch import cross_product_matrices
+
+__all__ = ["InertiaShape", "torque_free_factor", "propagate_batch", "rotation_error_T"]
+
+_H = 1e-6  # finite-difference step (rad, rad/s, log-ratio)
+
+
+@dataclass(frozen=True)
+class InertiaShape:
+    """The shape of an inertia tensor: principal axes in T and two log-ratios (module docstring).
+
+    Attributes
+    ----------
+    R_TP : ndarray (3, 3)
+        Principal axes (columns) in T.
+    log_ratios : ndarray (2,)
+        ``(ln J₂/J₁, ln J₃/J₁)`` of the principal moments in the columns' order.
+    """
+
+    R_TP: np.ndarray
+    log_ratios: np.ndarray
+
+    @property
+    def J_T(self) -> np.ndarray:
+        """The tensor in T, scaled so that ``J₁ = 1`` (``(3, 3)``)."""
+        d = np.concatenate([[1.0], np.exp(self.log_ratios)])
+        return (self.R_TP * d) @ self.R_TP.T
+
+    @classmethod
+    def from_tensor(cls, J_T: np.ndarray) -> InertiaShape:
+        """The shape of a symmetric positive-definite tensor (principal axes sorted by moment, right-handed)."""
+        J = 0.5 * (np.asarray(J_T, dtype=float) + np.asarray(J_T, dtype=float).T)
+        m, V = np.linalg.eigh(J)
+        if np.linalg.det(V) < 0:
+            V[:, 2] = -V[:, 2]
+        return cls(R_TP=V, log_ratios=np.log(m[1:] / m[0]))
+
+    def principal_moments(self) -> np.ndarray:
+        """Sorted principal moments ``(3,)`` with the smallest equal to 1."""
+        m = np.sort(np.linalg.eigvalsh(self.J_T))
+        return m / m[0]
+
+
+def _euler_rates(w: np.ndarray, J: np.ndarray, J_inv: np.ndarray) -> np.ndarray:
+    """``ω̇ = J⁻¹(−ω × Jω)`` for ``(M, 3)`` rates and ``(M, 3, 3)`` tensors (003 eq 27)."""
+    Jw = np.einsum("mij,mj->mi", J, w)
+    return np.einsum("mij,mj->mi", J_inv, -np.cross(w, Jw))
+
+
+def _exp_so3(v: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``(M, 3, 3)`` of rotation vectors ``(M, 3)`` (Rodrigues' formula)."""
+    th = np.linalg.norm(v, axis=-1)[:, None, None]
+    K = cross_product_matrices(v)
+    small = th < 1e-8
+    s = np.where(small, 1.0, np.sin(th) / np.where(small, 1.0, th))
+    c = np.where(small, 0.5, (1 - np.cos(th)) / np.where(small, 1.0, th * th))
+    return np.eye(3) + s * K + c * (K @ K)
+
+
+def propagate_batch(R_NT: np.ndarray, omega_T: np.ndarray, J_T: np.ndarray, dt_s: float,
+                    n_substeps: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """RK4 of 003 eq (25)–(27) for a batch of states, each with its own inertia tensor.
+
+    The rate is integrated with RK4 and the attitude with the matching 4th-order step of the
+    body-rate rotation vector (``R ← R Exp(h (k₁ + 2k₂ + 2k₃ + k₄)/6)`` on the stage rates, which
+    is RK4 of the kinematics to the order of the step; the attitude stays on SO(3)).
+
+    Parameters
+    ----------
+    R_NT : ndarray (M, 3, 3)
+    omega_T : ndarray (M, 3)
+        Body rates, rad/s.
+    J_T : ndarray (M, 3, 3)
+        Inertia tensors (any scale).
+    dt_s : float
+    n_substeps : int
+
+    Returns
+    -------
+    R_NT, omega_T : ndarray (M, 3, 3), (M, 3)
+    """
+    J_inv = np.linalg.inv(J_T)
+    h = dt_s / n_substeps
+    R, w = R_NT, omega_T
+    for _ in range(n_substeps):
+        k1 = _euler_rates(w, J_T, J_inv)
+        w2 = w + 0.5 * h * k1
+        k2 = _euler_rates(w2, J_T, J_inv)
+        w3 = w + 0.5 * h * k2
+        k3 = _euler_rates(w3, J_T, J_inv)
+        w4 = w + h * k3
+        k4 = _euler_rates(w4, J_T, J_inv)
+        # rotation vector over the step: Simpson's rule on the stage rates plus the coning term
+        theta = (h / 6.0) * (w + 2.0 * (w2 + w3) + w4) + (h * h / 12.0) * np.cross(w, w4)
+        R = R @ _exp_so3(theta)
+        w = w + (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+    return R, w
+
+
+def rotation_error_T(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
+    """``Log(R_estᵀ R_true)`` for batches ``(M, 3, 3)``: the body-frame rotation from estimate to truth, rad."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(np.swapaxes(R_est, -1, -2) @ R_true).as_rotvec()
+
+
+def _log_batch(R: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(R).as_rotvec()
+
+
+def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, int, int, int, int, int], dt_s: float, *,
+                       n_substeps: int = 1) -> gtsam.CustomFactor:
+    """The dynamics factor between two epochs (module docstring).
+
+    Parameters
+    ----------
+    noise : gtsam.noiseModel.Base
+        6-dimensional noise of ``[attitude (rad), rate (rad/s)]``.
+    keys : (Y_k, ω_k, Y_{k+1}, ω_{k+1}, R_TP, l)
+        gtsam keys of the two epochs' states and of the inertia shape.
+    dt_s : float
+        Time between the epochs, s.
+    n_substeps : int
+        RK4 sub-steps.
+
+    Returns
+    -------
+    gtsam.CustomFactor
+    """
+    eye = np.eye(3)
+
+    def error(this: gtsam.CustomFactor, values: gtsam.Values, H: list[np.ndarray] | None) -> np.ndarray:
+        kY0, kw0, kY1, kw1, kA, kl = (this.keys()[i] for i in range(6))
+        R0 = values.atRot3(kY0).matrix().T
+        w0 = values.atVector(kw0)
+        R1 = values.atRot3(kY1).matrix().T
+        w1 = values.atVector(kw1)
+        A = values.atRot3(kA).matrix()
+        lr = values.atVector(kl)
+        want = H is not None
+        M = 12 if want else 1
+        Rb = np.broadcast_to(R0, (M, 3, 3)).copy()
+        wb = np.broadcast_to(w0, (M, 3)).copy()
+        Ab = np.broadcast_to(A, (M, 3, 3)).copy()
+        lb = np.broadcast_to(lr, (M, 2)).copy()
+        if want:
+            # Y₀ ⊕ ε = Y₀ Exp(ε)  ⇒  R_NT ← Exp(−ε) R_NT
+            Rb[1:4] = _exp_so3(-_H * eye) @ R0
+            wb[4:7] += _H * eye
+            Ab[7:10] = A @ _exp_so3(_H * eye)
+            lb[10:12] += _H * np.eye(2)
+        d = np.exp(lb)
+        diag = np.concatenate([np.ones((M, 1)), d], -1)
+        J = np.einsum("mij,mj,mkj->mik", Ab, diag, Ab)
+        Rp, wp = propagate_batch(Rb, wb, J, dt_s, n_substeps)
+        r_att = _log_batch(np.swapaxes(Rp, -1, -2) @ R1)
+        r = np.concatenate([r_att, w1[None] - wp], -1)
+        if want:
+            D = (r[1:] - r[0]).T / _H  # (6, 11)
+            # derivatives with respect to the later epoch: R₁ ← Exp(−ε) R₁, i.e. body perturbation −R₁ᵀ ε
+            r_eps = _log_batch(np.swapaxes(Rp[:1], -1, -2) @ _exp_so3(-_H * eye) @ R1)
+            H[0] = D[:, 0:3]
+            H[1] = D[:, 3:6]
+            H[2] = np.vstack([(r_eps - r_att[0]).T / _H, np.zeros((3, 3))])
+            H[3] = np.vstack([np.zeros((3, 3)), eye])
+            H[4] = D[:, 6:9]
+            H[5] = D[:, 9:11]
+        return r[0]
+
+    return gtsam.CustomFactor(noise, list(keys), error)
