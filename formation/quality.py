@@ -158,16 +158,25 @@ def crlb_score(
             rb, tb = flat_r[sl], t_of[sl]
             Xb = Xt[tb]  # (B, M, 3)
             T_CW = camera_poses_at_target(rb)  # (B, k, 4, 4)
-            vis = None
-            if Nt is not None:
-                facing = np.einsum("bkd,bmd->bmk", rb, Nt[tb]) > np.sum(Xb * Nt[tb], -1)[..., None]
-                vis = facing & _in_view(Xb, K, T_CW, image_size)
+            vis = vis_next = None
+            if Nt is not None:  # each epoch's own view sets: the points and normals turn by R_delta
+                vis = _facing_in_view(rb, Xb, Nt[tb], K, T_CW, image_size)
+                R_b = Rt[tb][:, None]
+                vis_next = _facing_in_view(rb, (R_b @ Xb[..., None])[..., 0], (R_b @ Nt[tb][..., None])[..., 0],
+                                           K, T_CW, image_size)
             b = attitude_increment_crlb(Xb, Kk, T_CW, pixel_sigma_px=pixel_sigma_px, visible=vis,
-                                        R_delta=Rt[tb], image_size=image_size)
+                                        visible_next=vis_next, R_delta=Rt[tb], image_size=image_size)
             out[sl] = np.where(np.asarray(b.ok), np.asarray(b.rms_angle_rad), np.inf)
         return np.where(at_centre, np.inf, out.reshape(T, S))
 
     return score
+
+
+def _facing_in_view(r: np.ndarray, X: np.ndarray, N: np.ndarray, K: np.ndarray, T_CW: np.ndarray,
+                    image_size) -> np.ndarray:
+    """(B, M, k): points ``X (B, M, 3)`` with normals ``N`` facing cameras at ``r (B, k, 3)`` and in view."""
+    facing = np.einsum("bkd,bmd->bmk", r, N) > np.sum(X * N, -1)[..., None]
+    return facing & _in_view(X, K, T_CW, image_size)
 
 
 def _in_view(X: np.ndarray, K: np.ndarray, T_CW: np.ndarray, image_size) -> np.ndarray:

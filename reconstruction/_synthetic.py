@@ -196,7 +196,8 @@ def accuracy_study(*, n_views: int, n_trials: int, n_points: int = 200, distance
     rr_rms, _ = err_rms(rr.R)
     vis = np.ones((n_trials, n_points, n_views), bool)
     vis[ar, perm] = False
-    crlb_r = attitude_increment_crlb(X0, K, T, pixel_sigma_px=sigma_px, R_delta=dR, visible=vis)
+    crlb_r = attitude_increment_crlb(X0, K, T, pixel_sigma_px=sigma_px, R_delta=dR, visible=vis,
+                                     visible_next=vis)  # a replaced match is lost at both epochs
     return StudyResult(
         n_views=n_views, n_trials=n_trials, n_points=n_points,
         anees=float(np.mean(nees)), anees_band=(float(lo), float(hi)),

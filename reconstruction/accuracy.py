@@ -2,15 +2,18 @@
 
 Model (the geometric observation mode of ``vision.geometric``): M surface points are seen, with
 independent Gaussian pixel noise of σ px per coordinate, by calibrated cameras at epoch t and again
-at t + Δt after the target moved rigidly, ``X' = ΔR X + Δt``.  The unknowns are the motion
+at t + Δt after the target moved rigidly, ``X' = ΔR X + Δt``.  Each epoch has its own view set per
+point (a point seen by cameras 1 and 2 at t may be seen by 1, 2 and 3, or by 2 alone, at t + Δt).  The unknowns are the motion
 ``ξ = [δθ, δt]`` and the M point positions (the target is non-cooperative: no model).  The Fisher
 information of the motion with the points eliminated (Schur complement) is
 
 .. math:: F = \\sum_i M_i^T (C'_i + ΔR\\, C_i\\, ΔR^T)^{-1} M_i,
           \\qquad M_i = [\\,[ΔR X_i \\times],\\ -I\\,],
 
-where ``C_i = (Σ_k J_kᵀ J_k / σ²)⁻¹`` is point i's triangulation bound at t (and ``C'_i`` at
-t + Δt).  ``F⁻¹`` bounds the covariance of any unbiased estimate of ``[δθ, δt]`` (δθ: rotation
+where ``C_i = (Σ_{k ∈ V_i} J_kᵀ J_k / σ²)⁻¹`` is point i's triangulation bound at t over the views
+``V_i`` that see it then, and ``C'_i`` the same at t + Δt over its views ``V'_i`` then (003 eq (11)–(12)
+registers the two triangulated clouds; the points are the nuisance parameters).  Only points seen
+in at least two views at both epochs enter (the ones the pipeline triangulates at both).  ``F⁻¹`` bounds the covariance of any unbiased estimate of ``[δθ, δt]`` (δθ: rotation
 vector in W, ``ΔR_true = exp([δθ×]) ΔR̂``); it is exactly the covariance returned by
 :func:`reconstruction.registration.fit_rigid_ml`, which attains it to first order.
 
@@ -89,6 +92,17 @@ def _information(X_W, K, T, sigma, vis):
     return np.sum(JtW @ J, axis=-3)
 
 
+def _check_visible(visible, shape, name):
+    if visible is None:
+        return None
+    vis = np.asarray(visible, dtype=bool)
+    try:
+        return np.broadcast_to(vis, shape)
+    except ValueError:
+        raise ValueError(f"{name}: shape {vis.shape} does not broadcast to "
+                         f"(..., n_points, n_views) = {shape}") from None
+
+
 def _check_common(X_W, K, T_CW, pixel_sigma_px, visible, image_size):
     X = check_points(X_W, "X_W", allow_nan=False)
     K = check_intrinsics(K)
@@ -99,15 +113,7 @@ def _check_common(X_W, K, T_CW, pixel_sigma_px, visible, image_size):
     batch = np.broadcast_shapes(X.shape[:-2], K.shape[:-3], T.shape[:-3])
     M = X.shape[-2]
     sigma = check_positive(pixel_sigma_px, "pixel_sigma_px", batch + (M, n))
-    if visible is not None:
-        vis = np.asarray(visible, dtype=bool)
-        try:
-            vis = np.broadcast_to(vis, batch + (M, n))
-        except ValueError:
-            raise ValueError(f"visible: shape {vis.shape} does not broadcast to "
-                             f"(..., n_points, n_views) = {batch + (M, n)}") from None
-    else:
-        vis = None
+    vis = _check_visible(visible, batch + (M, n), "visible")
     if image_size is not None:
         if len(image_size) != 2 or min(image_size) <= 0:
             raise ValueError(f"image_size: expected (width, height) > 0, got {image_size!r}")
@@ -152,6 +158,8 @@ def point_covariance(X_W: ArrayLike, K: ArrayLike, T_CW: ArrayLike, *, pixel_sig
 
 def attitude_increment_crlb(X_W: ArrayLike, K: ArrayLike, T_CW: ArrayLike, *,
                             pixel_sigma_px: ArrayLike, visible: ArrayLike | None = None,
+                            visible_next: ArrayLike | None = None,
+                            pixel_sigma_px_next: ArrayLike | None = None,
                             R_delta: ArrayLike | None = None, t_delta: ArrayLike | None = None,
                             K_next: ArrayLike | None = None, T_CW_next: ArrayLike | None = None,
                             image_size: tuple[int, int] | None = None) -> AttitudeIncrementBound:
@@ -168,8 +176,15 @@ def attitude_increment_crlb(X_W: ArrayLike, K: ArrayLike, T_CW: ArrayLike, *,
     pixel_sigma_px : float or array_like broadcastable to (..., M, n)
         Pixel noise σ per coordinate, px.
     visible : array_like (..., M, n) bool, optional
-        Visibility, used at both epochs; default: computed per epoch (in front, inside the image
-        when ``image_size`` is given).
+        Which views see point i at t.  Default (with ``visible_next`` also omitted): computed per
+        epoch (in front, inside the image when ``image_size`` is given).
+    visible_next : array_like (..., M, n) bool, optional
+        Which views see point i at t + Δt; required with ``visible`` (tracks change view sets
+        between epochs: one mask for both put the bound 5–18 % off on rendered data, issue 16).
+        Pass ``visible_next=visible`` only where the view sets are known not to change.
+    pixel_sigma_px_next : float or array_like broadcastable to (..., M, n), optional
+        Pixel noise σ at t + Δt, px (default: ``pixel_sigma_px``; per keypoint when the noise
+        depends on the keypoint's scale).
     R_delta : array_like (..., 3, 3), optional
         Motion of the target in W between the epochs (default identity; for increments of a
         degree the bound barely depends on it).
@@ -186,6 +201,12 @@ def attitude_increment_crlb(X_W: ArrayLike, K: ArrayLike, T_CW: ArrayLike, *,
         are collinear.
     """
     X, K, T, sigma, vis, batch = _check_common(X_W, K, T_CW, pixel_sigma_px, visible, image_size)
+    if (visible is None) != (visible_next is None):
+        raise ValueError("visible, visible_next: give the visibility of both epochs or of neither "
+                         "(pass visible_next=visible where the view sets do not change)")
+    vis_next = _check_visible(visible_next, vis.shape if vis is not None else (), "visible_next")
+    sigma_next = sigma if pixel_sigma_px_next is None else check_positive(
+        pixel_sigma_px_next, "pixel_sigma_px_next", sigma.shape)
     R = np.eye(3) if R_delta is None else as_float(R_delta, "R_delta")
     tv = np.zeros(3) if t_delta is None else as_float(t_delta, "t_delta")
     if R.shape[-2:] != (3, 3) or tv.shape[-1:] != (3,):
@@ -200,10 +221,10 @@ def attitude_increment_crlb(X_W: ArrayLike, K: ArrayLike, T_CW: ArrayLike, *,
         vis1 = _visibility(X, K, T, image_size)
         vis2 = _visibility(Y, K2, T2, image_size)
     else:
-        vis1 = vis2 = vis
+        vis1, vis2 = vis, vis_next
     use = (np.sum(vis1, -1) >= 2) & (np.sum(vis2, -1) >= 2)
     C1, _ = sym3_inv(_information(X, K, T, sigma, vis1))
-    C2, _ = sym3_inv(_information(Y, K2, T2, sigma, vis2))
+    C2, _ = sym3_inv(_information(Y, K2, T2, sigma_next, vis2))
     Rb = np.broadcast_to(R, batch + (3, 3))[..., None, :, :]
     C = C2 + Rb @ C1 @ np.swapaxes(Rb, -1, -2)
     W, _ = sym3_inv(np.where(use[..., None, None], C, np.eye(3)))

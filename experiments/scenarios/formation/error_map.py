@@ -33,6 +33,7 @@ from experiments.scenarios.formation.parts import (
 )
 from experiments.sweep import Metric, SweepCell, cell_seed_sequences, child_seeds
 from reconstruction.accuracy import attitude_increment_crlb
+from vision.observation import Observation
 
 __all__ = ["random_attitudes", "error_map_trials", "error_map_cell", "error_map_sweep_cell", "error_map_run"]
 
@@ -43,15 +44,40 @@ def random_attitudes(rng: np.random.Generator, n: int | None = None) -> np.ndarr
     return quat_normalize(q)
 
 
-def _crlb_deg(frame: Frame, q_HT: np.ndarray, dq_H: np.ndarray, T_CW: np.ndarray) -> float:
-    """Cramér–Rao bound of one increment for the true surface points the cameras track."""
-    obs = frame.obs
-    good = obs.feature_id >= 0
-    if good.sum() < 3:
+def _same_surface_points(prev: Observation, curr: Observation, tol_px: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Tracks of two epochs that see the same surface point (truth only): indices ``(i_prev, i_curr)``.
+
+    Two correctly matched tracks are the same point when their true body points lie within
+    ``tol_px`` pixel footprints of each other at the cameras' range (the geometric mode's features
+    coincide exactly; rendered keypoints of two epochs land within ~0.2 px of the same point).
+    Each track of ``curr`` is paired at most once, with its nearest ``prev`` track.
+    """
+    from scipy.spatial import cKDTree
+
+    ia, ib = np.flatnonzero(prev.feature_id >= 0), np.flatnonzero(curr.feature_id >= 0)
+    if ia.size == 0 or ib.size == 0:
+        return ia[:0], ib[:0]
+    range_m = float(np.median(np.linalg.norm(prev.T_CW[:, :3, 3], axis=-1)))
+    tol_m = tol_px * range_m / float(np.min(prev.K[:, 0, 0]))
+    d_m, j = cKDTree(curr.X_T_true[ib]).query(prev.X_T_true[ia], distance_upper_bound=tol_m)
+    keep = np.isfinite(d_m)
+    ia, j, d_m = ia[keep], j[keep], d_m[keep]
+    order = np.lexsort((d_m, j))
+    first = np.ones(order.size, bool)
+    first[1:] = j[order][1:] != j[order][:-1]
+    return ia[order[first]], ib[j[order[first]]]
+
+
+def _crlb_deg(prev: Frame, curr: Frame, q_HT: np.ndarray, dq_H: np.ndarray, T_CW: np.ndarray) -> float:
+    """Cramér–Rao bound of one increment for the surface points tracked at both epochs, each epoch
+    with the views that see the point then (``visible`` and ``visible_next``)."""
+    ip, ic = _same_surface_points(prev.obs, curr.obs)
+    if ip.size < 3:
         return float("nan")
-    X_W = obs.X_T_true[good] @ matrix_from_quat(q_HT).T
-    b = attitude_increment_crlb(X_W, obs.K, T_CW, pixel_sigma_px=obs.pixel_sigma_px,
-                                visible=obs.seen[good], R_delta=matrix_from_quat(dq_H))
+    X_W = prev.obs.X_T_true[ip] @ matrix_from_quat(q_HT).T
+    b = attitude_increment_crlb(X_W, prev.obs.K, T_CW, pixel_sigma_px=prev.obs.pixel_sigma_px,
+                                pixel_sigma_px_next=curr.obs.pixel_sigma_px, visible=prev.obs.seen[ip],
+                                visible_next=curr.obs.seen[ic], R_delta=matrix_from_quat(dq_H))
     return float(np.degrees(b.rms_angle_rad)) if bool(b.ok) else float("nan")
 
 
@@ -67,7 +93,8 @@ def error_map_trials(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> di
     -------
     dict of (trials,) arrays
         ``e_dtheta_deg`` (003 eq 33), ``step_rms_deg`` (RMS over steps of the rotation angle of
-        ``ΔR̂ ΔRᵀ``), ``crlb_deg`` (Cramér–Rao RMS bound of one increment at the first step),
+        ``ΔR̂ ΔRᵀ``), ``crlb_deg`` (Cramér–Rao RMS bound of one increment at the first step, for the
+        surface points tracked at both epochs, each epoch with its own view sets),
         ``n_tracks``, ``n_matches``, ``n_inliers`` (medians over the epochs / steps),
         ``failed_steps``, and ``failure_reason``.
     """
@@ -101,7 +128,7 @@ def error_map_trials(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> di
         frames = reconstruct_many(observations)
         est, errs, inliers, matches = [], [], [], []
         tracks = [f.obs.n_tracks for f in frames]
-        out["crlb_deg"][t] = _crlb_deg(frames[0], qs[0], dq, T_CW)
+        out["crlb_deg"][t] = _crlb_deg(frames[0], frames[1], qs[0], dq, T_CW)
         why = ""
         for k in range(1, steps + 1):
             inc = registrar.register(frames[k - 1], frames[k], rng=reg_rng, with_covariance=False)
