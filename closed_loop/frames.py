@@ -40,6 +40,28 @@ class Frame:
             return str(self.obs.failure_reason)
         return "" if self.ok else str(self.tri.failure_reason)
 
+    def rotation_covariance_H(self) -> np.ndarray:
+        """Covariance of the orientation of the whole triangulated cloud (rad², H).
+
+        The Cramér–Rao bound of the rotation ``δθ`` of a rigid motion ``Xᵢ ← Xᵢ + δθ × Xᵢ + δt``
+        estimated from the cloud's own points with their covariances (the translation
+        marginalised): ``[(Σ Jᵢᵀ Cᵢ⁻¹ Jᵢ)⁻¹]_θθ`` with ``Jᵢ = [−[Xᵢ×], I]``.  It is the part of
+        every registration's error that this frame's point noise contributes and that all the
+        frame's registrations share (NaN with fewer than 3 valid points).
+        """
+        v = np.asarray(self.tri.valid, bool) & np.all(np.isfinite(self.tri.X_W), -1)
+        if v.sum() < 3:
+            return np.full((3, 3), np.nan)
+        X = self.tri.X_W[v]
+        W = np.linalg.inv(self.tri.cov_W[v])
+        Xc = X - X.mean(axis=0)
+        S = np.zeros((len(X), 3, 3))
+        S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -Xc[:, 2], Xc[:, 1], -Xc[:, 0]
+        S = S - np.swapaxes(S, 1, 2)  # [Xc×]
+        J = np.concatenate([-S, np.broadcast_to(np.eye(3), S.shape)], axis=2)  # (N, 3, 6)
+        info = np.einsum("nki,nkl,nlj->ij", J, W, J)
+        return np.linalg.inv(info)[:3, :3]
+
 
 def reconstruct(obs: Observation) -> Frame:
     """Triangulate an observation (an empty or failed observation gives a flagged frame)."""
@@ -58,9 +80,13 @@ def reconstruct_many(observations: Sequence[Observation]) -> list[Frame]:
     m = max(o.n_tracks for o in good)
     n = good[0].n_views
     uv = np.full((len(good), m, n, 2), np.nan)
+    per_track = any(o.track_sigma_px is not None for o in good)
+    sigma = np.full((len(good), m, n), good[0].pixel_sigma_px)
     for e, o in enumerate(good):
         uv[e, : o.n_tracks] = o.uv_px
-    batch = triangulate(uv, good[0].K, good[0].T_CW, pixel_sigma_px=good[0].pixel_sigma_px)
+        sigma[e, : o.n_tracks] = o.sigma_uv_px
+    batch = triangulate(uv, good[0].K, good[0].T_CW,
+                        pixel_sigma_px=sigma if per_track else good[0].pixel_sigma_px)
     frames: list[Frame] = []
     e = 0
     for o in observations:

@@ -89,6 +89,23 @@ class ClosedLoopResult:
         ``""`` where ok, else why not (``"initial epoch"`` at the first).
     snapshot : Snapshot or None
         The first observed epoch at or after the requested one.
+    attitude_cov_T_rad2, omega_cov_T_rad2_s2 : ndarray (T, 3, 3) or None
+        The estimator's covariance of its body-frame attitude error and of its rate error (the
+        filter's tangent blocks; the smoother's marginals).
+    n_links : ndarray (T,) or None
+        Relative rotations accepted at each epoch (smoother: previous epoch, keyframes, closures).
+    n_rejected : ndarray (T,) or None
+        Registrations refused at each epoch (evidence or the innovation gate).
+    closure : ndarray (T,) object or None
+        How the epoch was tied to a keyframe older than the previous epoch: ``"descriptors"``,
+        ``"geometry"`` or ``""``.
+    gaps : tuple of dict
+        Each run of epochs without an accepted registration (smoother): ``start_s``, ``end_s``,
+        ``closed_by`` (``"descriptors"``, ``"geometry"``, ``"not re-acquired"``), ``closed_at_s``.
+    inertia : closed_loop.torque_free_factor.InertiaShape or None
+        The smoother's estimate of the inertia shape at the end.
+    n_keyframes : int
+        Keyframes in the target model at the end.
     """
 
     q_NT_est: np.ndarray
@@ -104,6 +121,14 @@ class ClosedLoopResult:
     ok: np.ndarray
     failure_reason: np.ndarray
     snapshot: Snapshot | None = None
+    attitude_cov_T_rad2: np.ndarray | None = None
+    omega_cov_T_rad2_s2: np.ndarray | None = None
+    n_links: np.ndarray | None = None
+    n_rejected: np.ndarray | None = None
+    closure: np.ndarray | None = None
+    gaps: tuple[dict, ...] = ()
+    inertia: object | None = None
+    n_keyframes: int = 0
 
 
 @dataclass(frozen=True)
@@ -187,7 +212,7 @@ class ClosedLoop:
         state = filt.clone(initial_state)
         q_est = np.full((T, 4), np.nan)
         w_est = np.full((T, 3), np.nan)
-        sigma = np.full((T, 6), np.nan)
+        cov = np.full((T, 6, 6), np.nan)
         used = np.zeros((T, S), bool)
         n_tracks = np.zeros(T)
         n_points = np.zeros(T)
@@ -237,11 +262,14 @@ class ClosedLoop:
             reason[k] = INITIAL_EPOCH if k == 0 else ("" if ok[k] else why)
             q_est[k] = state.q_NT[0]
             w_est[k] = state.omega_TN_T[0]
-            sigma[k] = np.sqrt(np.clip(np.diagonal(filt.tangent_covariance(state)[0])[:6], 0.0, None))
+            cov[k] = filt.tangent_covariance(state)[0][:6, :6]
             prev, prev_active = frame, act
             if progress:
                 progress(k + 1, T)
+        sigma = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
         return ClosedLoopResult(q_NT_est=q_est, omega_TN_T_est_rad_s=w_est, attitude_sigma_T_rad=sigma[:, :3],
                                 omega_sigma_T_rad_s=sigma[:, 3:], active=used, n_tracks=n_tracks,
                                 n_points=n_points, n_matches=n_matches, increment_error_deg=inc_err,
-                                increment_sigma_deg=inc_sigma, ok=ok, failure_reason=reason, snapshot=snap)
+                                increment_sigma_deg=inc_sigma, ok=ok, failure_reason=reason, snapshot=snap,
+                                attitude_cov_T_rad2=cov[:, :3, :3], omega_cov_T_rad2_s2=cov[:, 3:, 3:],
+                                n_links=ok.astype(int))

@@ -15,10 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from attitude.quaternion import quat_from_matrix
+from closed_loop.evidence import Evidence, check_evidence
 from closed_loop.frames import Frame
 from closed_loop.registry import Registry
 from filters import IncrementMeasurement
-from reconstruction.association import associate_from_observations
+from reconstruction.association import associate, associate_from_observations
 from reconstruction.registration import RigidRegistration, fit_rigid, fit_rigid_ml, fit_rigid_robust
 
 __all__ = [
@@ -111,11 +112,15 @@ class RegistrationIncrement:
                                     R_NH_prev=R_NH_prev, R_NH_now=R_NH_now, cov_side="left")
 
 
+@dataclass(frozen=True)
 class Registrar(ABC):
     """Associates two frames' tracks and fits the rigid motion of the matched points.
 
-    Subclasses implement :meth:`fit`; :meth:`register` does the association and bookkeeping.
+    Subclasses implement :meth:`fit`; :meth:`register` does the association, the checks of
+    :attr:`evidence` (:mod:`closed_loop.evidence`) and the bookkeeping.
     """
+
+    evidence: Evidence = Evidence()
 
     @abstractmethod
     def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator) -> RigidRegistration:
@@ -136,7 +141,7 @@ class Registrar(ABC):
         """
 
     def register(self, prev: Frame, curr: Frame, *, rng: np.random.Generator,
-                 with_covariance: bool = True) -> RegistrationIncrement:
+                 with_covariance: bool = True, view_agnostic: bool = False) -> RegistrationIncrement:
         """The attitude increment from ``prev`` to ``curr``.
 
         Parameters
@@ -148,6 +153,10 @@ class Registrar(ABC):
         with_covariance : bool
             When the fit gives no covariance (Kabsch, RANSAC), estimate it from the fit's residuals
             (:func:`residual_rotation_covariance`; the filter needs it, the error maps do not).
+        view_agnostic : bool
+            Associate the tracks by descriptor whatever cameras saw them (two epochs seen by
+            different observers or different numbers of them: a keyframe of the target model);
+            default: view by view (003 §1.5, the same cameras at both epochs).
 
         Returns
         -------
@@ -159,7 +168,14 @@ class Registrar(ABC):
             return RegistrationIncrement.failed(f"previous epoch: {prev.failure_reason}")
         if not curr.ok:
             return RegistrationIncrement.failed(f"this epoch: {curr.failure_reason}")
-        assoc = associate_from_observations(prev.obs, curr.obs, prev.tri, curr.tri)
+        if view_agnostic:
+            seen_p = (prev.tri.views_used & prev.tri.valid[:, None]).any(axis=1)[:, None]
+            seen_c = (curr.tri.views_used & curr.tri.valid[:, None]).any(axis=1)[:, None]
+            assoc = associate(seen_p, prev.obs.descriptors, seen_c, curr.obs.descriptors, X_prev=prev.tri.X_W,
+                              X_next=curr.tri.X_W, residual_prev=prev.tri.rms_reprojection_px,
+                              residual_next=curr.tri.rms_reprojection_px)
+        else:
+            assoc = associate_from_observations(prev.obs, curr.obs, prev.tri, curr.tri)
         k = int(assoc.idx_prev.size)
         if not assoc.ok:
             return RegistrationIncrement.failed(f"association: {assoc.failure_reason}", k)
@@ -169,6 +185,10 @@ class Registrar(ABC):
         reg = self.fit(pairs, rng=rng)
         if not bool(reg.ok):
             return RegistrationIncrement.failed(f"registration: {reg.failure_reason}", k)
+        why = check_evidence(pairs.P_H, pairs.Q_H, pairs.cov_P_H, pairs.cov_Q_H, reg.R, reg.t, reg.inliers,
+                             self.evidence)
+        if why:
+            return RegistrationIncrement.failed(why, k)
         cov = reg.cov[:3, :3]
         if with_covariance and not np.all(np.isfinite(cov)):
             cov = residual_rotation_covariance(pairs.P_H, pairs.Q_H, reg)

@@ -8,10 +8,20 @@ log-ratios).  Factors:
   docs/papers.md#p003-14a) and on the inertia shape;
 * torque-free dynamics between consecutive epochs (003 eq 25–27,
   :func:`closed_loop.torque_free_factor.torque_free_factor`) with a small process noise;
+* per observed frame, the orientation of its cloud ``B_k`` (in the form of ``Y``) tied to the
+  epoch's attitude by the frame's own cloud-orientation covariance
+  (:meth:`closed_loop.frames.Frame.rotation_covariance_H`): the error that the frame's point noise
+  puts into *every* registration it takes part in;
 * one relative rotation per accepted registration, to the previous epoch, to a keyframe or a
   loop closure: ``R_NT(k) R_NT(j)ᵀ = R_NH(k) ΔR_H R_NH(j)ᵀ`` (003 eq 31–32 carried to N), a
-  :class:`gtsam.BetweenFactorRot3` on ``Y`` with a Huber-robust noise of the registration's
-  covariance, after a χ² gate on its innovation against the current estimate.
+  :class:`gtsam.BetweenFactorRot3` between ``B_j`` and ``B_k`` with a Huber-robust noise of the
+  registration's covariance less the two frames' shares, after a χ² gate on its innovation
+  against the current estimate.
+
+The frames' shares make the graph count each frame's noise once: consecutive increments share a
+frame and their errors cancel along a chain (lag-1 correlation −0.14), and a keyframe's noise
+enters every closure to it.  Treating the registrations as independent instead makes the chained
+estimate too pessimistic and the keyframe closures too confident.
 
 :meth:`AttitudeSmoother.update` runs one iSAM2 step (online); :meth:`AttitudeSmoother.batch`
 re-solves the whole graph with Levenberg–Marquardt (analysis).  Covariances are iSAM2's marginals.
@@ -23,7 +33,7 @@ from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import A, L, W, Y
+from gtsam.symbol_shorthand import A, B, L, W, Y
 from scipy.stats import chi2
 
 from closed_loop.torque_free_factor import InertiaShape, propagate_batch, torque_free_factor
@@ -106,12 +116,14 @@ class AttitudeSmoother:
         p.setRelinearizeThreshold(self.settings.relinearize_threshold)
         p.relinearizeSkip = int(self.settings.relinearize_skip)
         p.setFactorization("QR")
+        p.setOptimizationParams(gtsam.ISAM2DoglegParams())
         self._isam = gtsam.ISAM2(p)
         self._graph = gtsam.NonlinearFactorGraph()
         self._values = gtsam.Values()
         self._all = gtsam.NonlinearFactorGraph()
         self._t: list[float] = []
         self._est = gtsam.Values()
+        self._frame_cov: dict[int, np.ndarray] = {}
 
     # ---------------------------------------------------------------- building
     def start(self, t_s: float, R_NT0: np.ndarray, cov_attitude_T: np.ndarray, omega_TN_T0_rad_s: np.ndarray,
@@ -194,16 +206,36 @@ class AttitudeSmoother:
         thr = float(chi2.ppf(self.settings.gate_probability, 3))
         return GateResult(accepted=bool(np.isfinite(c2) and c2 <= thr), chi2=c2, threshold=thr)
 
+    def add_frame(self, k: int, cov_frame_N: np.ndarray) -> None:
+        """The cloud orientation ``B_k`` of epoch ``k``'s frame, with its covariance (left, N, rad²); once per epoch."""
+        if k in self._frame_cov:
+            return
+        cov = 0.5 * (np.asarray(cov_frame_N, float) + np.asarray(cov_frame_N, float).T)
+        self._frame_cov[k] = cov
+        R, _ = self.estimate(k)
+        # B_k = Y_k Exp(ε): ε is minus the left N-frame error of the cloud's orientation
+        self._graph.add(gtsam.BetweenFactorRot3(Y(k), B(k), gtsam.Rot3(), gtsam.noiseModel.Gaussian.Covariance(cov)))
+        self._values.insert(B(k), _rot(R.T))
+
     def add_relative(self, j: int, k: int, dR_N: np.ndarray, cov_N: np.ndarray) -> None:
         """A relative-rotation factor ``R_NT(k) R_NT(j)ᵀ = dR_N`` with left N-frame covariance ``cov_N`` (rad²).
 
-        Call :meth:`gate` first; this adds unconditionally (Huber-robust).
+        Both frames must have been added (:meth:`add_frame`); the factor joins their cloud
+        orientations with ``cov_N`` less the frames' shares ``Σ_k + ΔR Σ_j ΔRᵀ`` (kept positive
+        definite: at least 10 % of ``cov_N`` in every direction).  Call :meth:`gate` first; this
+        adds unconditionally (Huber-robust).
         """
+        dR = np.asarray(dR_N, float)
         cov = 0.5 * (np.asarray(cov_N, float) + np.asarray(cov_N, float).T)
-        base = gtsam.noiseModel.Gaussian.Covariance(cov)
+        shares = self._frame_cov[k] + dR @ self._frame_cov[j] @ dR.T
+        m, V = np.linalg.eigh(cov)
+        iso = np.diag(1.0 / np.sqrt(m)) @ V.T  # whitening of cov
+        rm, rV = np.linalg.eigh(iso @ (cov - shares) @ iso.T)
+        resid = np.linalg.inv(iso) @ (rV * np.maximum(rm, 0.1)) @ rV.T @ np.linalg.inv(iso).T
+        base = gtsam.noiseModel.Gaussian.Covariance(0.5 * (resid + resid.T))
         noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(self.settings.huber_k), base)
-        # Y_jᵀ Y_k = R_NT(j) R_NT(k)ᵀ = dR_Nᵀ; its right error is the (negated) left error of dR_N
-        self._graph.add(gtsam.BetweenFactorRot3(Y(j), Y(k), _rot(np.asarray(dR_N).T), noise))
+        # B_jᵀ B_k = R_NT(j) R_NT(k)ᵀ = dR_Nᵀ; its right error is the (negated) left error of dR_N
+        self._graph.add(gtsam.BetweenFactorRot3(B(j), B(k), _rot(dR.T), noise))
 
     def update(self) -> None:
         """One iSAM2 step with the factors and variables added since the last."""

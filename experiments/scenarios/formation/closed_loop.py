@@ -31,11 +31,13 @@ from closed_loop import (
     plan_observers,
     tumbling_target,
 )
+from closed_loop.smoothing_loop import SmoothingLoop, SmootherStart
 from experiments.scenarios.formation.config import Config
 from experiments.scenarios.formation.parts import (
     criterion,
     load_target,
     make_camera,
+    make_estimator,
     make_loop,
     observation_constraints,
     orbit_radius_m,
@@ -112,10 +114,12 @@ def closed_loop(cfg: Config, seed_seq: np.random.SeedSequence, *,
     s_init, s_obs, s_reg = child_seeds(seed_seq, 3)
     loop = make_loop(cfg, camera, target)
     e = cfg.estimator
-    state0 = initial_estimate(loop.estimator, tr.q_NT[0], tr.omega_TN_T_rad_s[0],
+    state0 = initial_estimate(make_estimator(cfg), tr.q_NT[0], tr.omega_TN_T_rad_s[0],
                               sigma_q=e.sigma_q_known if e.initial_attitude_known else e.sigma_q,
                               sigma_omega_rad_s=np.deg2rad(e.sigma_omega_deg_s), rng=np.random.default_rng(s_init),
                               t_s=t[0], attitude_known=e.initial_attitude_known)
+    if isinstance(loop, SmoothingLoop):
+        state0 = SmootherStart.from_filter_state(make_estimator(cfg), state0)
     res = loop.run(t, tr.q_HT, tr.R_NH, tr.sun_H, tr.illumination, r, state0,
                    rng_observe=np.random.default_rng(s_obs), rng_register=np.random.default_rng(s_reg),
                    active=plan.active, inactive_reason=plan.failure_reason, snapshot_from=T // 2 if snapshot else None,
@@ -172,6 +176,7 @@ def _dataset(cfg: Config, tr: TumblingTarget, plan: ObserverPlan, res: ClosedLoo
                "threshold_attitude_deg": crit.attitude_deg, "threshold_rate_deg_s": crit.rate_deg_s,
                "converged": int(bool(conv)), "convergence_time_s": float(tconv)},
     )
+    ds = ds.merge(_consistency_dataset(tr, res))
     if res.snapshot is not None:
         attrs = dict(ds.attrs)
         ds = ds.merge(_snapshot_dataset(camera, target, tr.q_HT, res.snapshot))
@@ -191,8 +196,83 @@ def _dataset(cfg: Config, tr: TumblingTarget, plan: ObserverPlan, res: ClosedLoo
         "median_tracks_per_observed_epoch": float(np.median(n_tracks[n_tracks > 0])) if (n_tracks > 0).any() else 0.0,
         "epochs_without_observer_set": int(np.sum(~plan.active.any(axis=1))),
         "reconfiguration": plan.reconfiguration,
+        **_consistency_summary(cfg, res, ds),
     }
     return ds, summary
+
+
+def _nees(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """``eᵀ C⁻¹ e`` per epoch (NaN where the covariance is missing or singular)."""
+    out = np.full(len(err), np.nan)
+    ok = np.all(np.isfinite(cov), axis=(1, 2)) & np.all(np.isfinite(err), axis=1)
+    if ok.any():
+        try:
+            out[ok] = np.einsum("ti,ti->t", err[ok], np.linalg.solve(cov[ok], err[ok][..., None])[..., 0])
+        except np.linalg.LinAlgError:
+            pass
+    return out
+
+
+def _consistency_dataset(tr: TumblingTarget, res: ClosedLoopResult) -> xr.Dataset:
+    """Per-epoch NEES of the attitude and the rate (3 dof each) and the registrations' bookkeeping."""
+    e_T = rotvec_from_quat(quat_multiply(quat_conjugate(res.q_NT_est), tr.q_NT))
+    T = len(tr.t_s)
+    nan = np.full((T, 3, 3), np.nan)
+    vars_ = {
+        "nees_attitude": ("time_s", _nees(e_T, res.attitude_cov_T_rad2 if res.attitude_cov_T_rad2 is not None else nan),
+                          {"long_name": "attitude NEES (3 dof) against the estimator's covariance"}),
+        "nees_rate": ("time_s", _nees(res.omega_TN_T_est_rad_s - tr.omega_TN_T_rad_s,
+                                      res.omega_cov_T_rad2_s2 if res.omega_cov_T_rad2_s2 is not None else nan),
+                      {"long_name": "rate NEES (3 dof) against the estimator's covariance"}),
+    }
+    if res.n_links is not None:
+        vars_["n_links"] = ("time_s", res.n_links, {"long_name": "registrations accepted at the epoch"})
+    if res.n_rejected is not None:
+        vars_["n_rejected"] = ("time_s", res.n_rejected, {"long_name": "registrations refused (evidence or gate)"})
+    if res.closure is not None:
+        vars_["closure"] = ("time_s", res.closure.astype(str),
+                            {"long_name": "tied to a keyframe older than the previous epoch by"})
+    return xr.Dataset(vars_, coords={"time_s": tr.t_s})
+
+
+def _consistency_summary(cfg: Config, res: ClosedLoopResult, ds: xr.Dataset) -> dict:
+    """NEES, closures, gaps and the inertia estimate for the summary."""
+    from scipy.stats import chi2
+
+    na, nw = ds["nees_attitude"].values[1:], ds["nees_rate"].values[1:]
+    lo, hi = chi2.ppf([0.025, 0.975], 3)
+    out: dict = {
+        "mean_nees_attitude": float(np.nanmean(na)) if np.isfinite(na).any() else float("nan"),
+        "mean_nees_rate": float(np.nanmean(nw)) if np.isfinite(nw).any() else float("nan"),
+        "fraction_epochs_nees_attitude_in_95pct": float(np.mean((na >= lo) & (na <= hi))) if na.size else float("nan"),
+        "gaps": [dict(g) for g in res.gaps],
+    }
+    if res.closure is not None:
+        out["closures_by_descriptors"] = int(np.sum(res.closure == "descriptors"))
+        out["closures_by_geometry"] = int(np.sum(res.closure == "geometry"))
+        out["keyframes"] = int(res.n_keyframes)
+    if res.n_rejected is not None:
+        out["registrations_refused"] = int(np.sum(res.n_rejected))
+    if res.inertia is not None and cfg.estimator.estimate_inertia:
+        from closed_loop.torque_free_factor import InertiaShape
+
+        true = InertiaShape.from_tensor(cfg.inertia())
+        est = res.inertia
+        m_true, m_est = true.principal_moments(), est.principal_moments()
+        axes_deg = _principal_axes_error_deg(est.J_T, true.J_T)
+        out["inertia_ratios_estimated"] = m_est[1:].tolist()
+        out["inertia_ratios_true"] = m_true[1:].tolist()
+        out["inertia_ratio_error_pct"] = (100 * (m_est[1:] / m_true[1:] - 1)).tolist()
+        out["principal_axes_error_deg"] = axes_deg
+    return out
+
+
+def _principal_axes_error_deg(J_est: np.ndarray, J_true: np.ndarray) -> list[float]:
+    """Angle between each estimated and true principal axis (sorted by moment; sign-free), deg."""
+    _, Ve = np.linalg.eigh(J_est)
+    _, Vt = np.linalg.eigh(J_true)
+    c = np.abs(np.sum(Ve * Vt, axis=0)).clip(0, 1)
+    return np.degrees(np.arccos(c)).tolist()
 
 
 def _snapshot_dataset(camera: PinholeCamera, target: Target, q_HT: np.ndarray, snap: Snapshot) -> xr.Dataset:

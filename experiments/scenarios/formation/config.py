@@ -123,7 +123,28 @@ class TargetConfig(ConfigTable):
     omega_TN_T0_deg_s: list[Rate_deg_s] = Field([5.0, 5.0, 5.0], description="initial body rate, each component "
                                                 "within ±1e3 deg/s (003 eq 34, flag P003-13, docs/papers.md#p003-13)")
 
+    inertia_tensor_kg_m2: list[list[FiniteFloat]] | None = Field(
+        None, description="full 3x3 inertia tensor in the body frame (the first frame's, not the principal one); "
+                          "replaces inertia_kg_m2 when given")
+
     _c_inertia = field_validator("inertia_kg_m2")(_vec(3, positive=True))
+
+    @field_validator("inertia_tensor_kg_m2")
+    @classmethod
+    def _tensor(cls, v: list[list[float]] | None) -> list[list[float]] | None:
+        if v is None:
+            return v
+        J = np.asarray(v, dtype=float)
+        if J.shape != (3, 3):
+            raise ValueError(f"expected a 3x3 matrix, got shape {J.shape}")
+        if not np.allclose(J, J.T, rtol=1e-9, atol=1e-9 * np.abs(J).max()):
+            raise ValueError("must be symmetric")
+        m = np.linalg.eigvalsh(J)
+        if m[0] <= 0 or np.abs(J).max() > 1e12:
+            raise ValueError(f"must be positive definite with entries at most 1e12 (eigenvalues {shorten(m.tolist())})")
+        if m[0] + m[1] < m[2] * (1 - 1e-12):
+            raise ValueError(f"principal moments {shorten(m.tolist())} violate the triangle inequality")
+        return v
     _c_rate = field_validator("omega_TN_T0_deg_s")(_vec(3))
 
     @field_validator("q_NT0")
@@ -246,6 +267,10 @@ class ObservationConfig(ConfigTable):
     sun_H: list[FiniteFloat] = Field([1.0, -0.5, 0.6], description="rendered mode: direction to the Sun (H), "
                                      "not zero")
     detector: Literal["sift", "orb", "akaze", "surf"] = "sift"
+    noise_model: Literal["fixed", "calibrated"] = Field(
+        "fixed", description="fixed: pixel_sigma_px (and false_match_fraction) as given; calibrated: as measured on "
+        "rendered images by 'coobs calibrate' (rendered: sigma per keypoint from its SIFT size; geometric: also "
+        "detection, match/association survival and false rates)")
 
     _c_sun = field_validator("sun_H")(_vec(3))
 
@@ -260,9 +285,23 @@ class ObservationConfig(ConfigTable):
 class EstimatorConfig(ConfigTable):
     """Registration and filter settings."""
 
-    registration: Literal["kabsch", "ransac", "ml"] = Field(
-        "kabsch", description="kabsch: 003 eq (11)-(13) weighted; ransac: + 3-point RANSAC; ml: covariance-aware")
-    filter: Literal["ekf", "mekf"] = "ekf"
+    registration: Literal["kabsch", "ransac", "ml", "map"] = Field(
+        "kabsch", description="kabsch: 003 eq (11)-(13) weighted; ransac: + 3-point RANSAC; ml: covariance-aware; "
+                              "map: ml to the previous epoch and to the target model's keyframes, with loop closure "
+                              "(needs filter = smoother)")
+    filter: Literal["ekf", "mekf", "smoother"] = Field(
+        "ekf", description="ekf: 003's additive EKF; mekf: multiplicative EKF; smoother: gtsam iSAM2 factor graph "
+                           "with torque-free dynamics")
+    estimate_inertia: Flag = Field(True, description="smoother: estimate the inertia shape (principal axes and two "
+                                   "ratios) from inertia_prior_kg_m2; else use the target's true tensor")
+    inertia_prior_kg_m2: list[Inertia_kg_m2] = Field([1.0, 0.9, 0.8], description="smoother: prior mean of the "
+                                                     "inertia shape (principal moments along the body axes)")
+    viewpoint_window_deg: Angle_deg = Field(30.0, gt=0, le=180.0, description="map: largest viewpoint change over "
+                                            "which descriptors associate (beyond: registration by geometry)")
+    min_inliers: Integer = Field(10, ge=3, le=10000, description="evidence: fewest inlier pairs a registration "
+                                 "needs to reach any estimator")
+
+    _c_prior = field_validator("inertia_prior_kg_m2")(_vec(3, positive=True))
     sigma_q: FiniteFloat = Field(0.1, gt=0, le=1.0, description="003 eq (35) initial quaternion σ per component")
     sigma_omega_deg_s: Rate_deg_s = Field(0.1, gt=0, le=90.0, description="003 eq (35) initial rate σ")
     initial_attitude_known: Flag = Field(
@@ -360,6 +399,9 @@ class Config(ScenarioConfig):
     @model_validator(mode="after")
     def _consistent(self) -> Config:
         self.check_swept_values()
+        if self.estimator.registration == "map" and self.estimator.filter != "smoother":
+            raise ValueError(f"estimator.registration: 'map' needs estimator.filter = 'smoother', got "
+                             f"{self.estimator.filter!r}")
         hold = self.estimator.convergence_hold_s
         if self.study in ("ekf", "closed_loop") and hold > self.time.duration_s:
             raise ValueError(f"estimator.convergence_hold_s: {hold:g} s exceeds time.duration_s "
@@ -367,7 +409,9 @@ class Config(ScenarioConfig):
         return self
 
     def inertia(self) -> np.ndarray:
-        """Target inertia tensor (3, 3), kg·m²."""
+        """Target inertia tensor (3, 3) in the body frame, kg·m² (``inertia_tensor_kg_m2`` when given)."""
+        if self.target.inertia_tensor_kg_m2 is not None:
+            return np.asarray(self.target.inertia_tensor_kg_m2, dtype=float)
         return np.diag(self.target.inertia_kg_m2)
 
     def omega0_rad_s(self) -> np.ndarray:

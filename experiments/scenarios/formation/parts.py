@@ -13,6 +13,10 @@ import functools
 import numpy as np
 
 from closed_loop import ESTIMATORS, OBSERVERS, REGISTRARS, ClosedLoop, Observer, Registrar
+from closed_loop.evidence import Evidence
+from closed_loop.smoother import SmootherSettings
+from closed_loop.smoothing_loop import SmoothingLoop
+from closed_loop.target_model import ModelSettings
 from experiments.scenarios.formation.config import Config
 from filters import AttitudeFilter, ConvergenceCriterion
 from formation.constraints import ObservationConstraints
@@ -67,19 +71,29 @@ def make_observer(cfg: Config, camera: PinholeCamera | None = None, target: Targ
 
 
 def make_registrar(cfg: Config) -> Registrar:
-    """The registrar of ``estimator.registration``."""
-    return REGISTRARS[cfg.estimator.registration]()
+    """The registrar of ``estimator.registration`` (``map`` fits by maximum likelihood) with the evidence thresholds."""
+    e = cfg.estimator
+    return REGISTRARS["ml" if e.registration == "map" else e.registration](evidence=Evidence(min_inliers=e.min_inliers))
 
 
 def make_estimator(cfg: Config) -> AttitudeFilter:
-    """The filter of ``estimator.filter`` with the target's inertia."""
-    return ESTIMATORS[cfg.estimator.filter](J_kg_m2=cfg.inertia())
+    """The filter of ``estimator.filter`` with the target's inertia (the smoother starts from an MEKF's prior)."""
+    name = "mekf" if cfg.estimator.filter == "smoother" else cfg.estimator.filter
+    return ESTIMATORS[name](J_kg_m2=cfg.inertia())
 
 
-def make_loop(cfg: Config, camera: PinholeCamera | None = None, target: Target | None = None) -> ClosedLoop:
-    """The closed loop of the config: its observer, registrar and estimator."""
-    return ClosedLoop(observer=make_observer(cfg, camera, target), registrar=make_registrar(cfg),
-                      estimator=make_estimator(cfg))
+def make_loop(cfg: Config, camera: PinholeCamera | None = None,
+              target: Target | None = None) -> ClosedLoop | SmoothingLoop:
+    """The closed loop of the config: its observer, registrar and estimator (a filter, or the smoother with
+    an optional target model)."""
+    e = cfg.estimator
+    observer, registrar = make_observer(cfg, camera, target), make_registrar(cfg)
+    if e.filter == "smoother":
+        J = np.diag(e.inertia_prior_kg_m2) if e.estimate_inertia else cfg.inertia()
+        model = ModelSettings(viewpoint_window_deg=e.viewpoint_window_deg) if e.registration == "map" else None
+        return SmoothingLoop(observer=observer, registrar=registrar, J_prior_kg_m2=J,
+                             settings=SmootherSettings(estimate_inertia=e.estimate_inertia), model=model)
+    return ClosedLoop(observer=observer, registrar=registrar, estimator=make_estimator(cfg))
 
 
 def criterion(cfg: Config) -> ConvergenceCriterion:
