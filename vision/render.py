@@ -33,7 +33,7 @@ from vision.observation import REASON_EARTH_SHADOW, REASON_OUTSIDE_FOV
 from vision.sensor import SensorModel
 from vision.target import Target
 
-__all__ = ["RenderResult", "cast_body_points", "render", "roi_of_target", "REASON_EARTH_SHADOW",
+__all__ = ["RenderResult", "cast_body_points", "render", "render_batch", "roi_of_target", "REASON_EARTH_SHADOW",
            "REASON_OUTSIDE_FOV", "REASON_BEHIND_CAMERA"]
 
 #: ``failure_reason`` of a view whose camera has the whole target behind it.
@@ -386,3 +386,213 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
     exposure = sensor.exposure_for(rad_roi)
     image[rs] = sensor.apply(rad_roi, rng=rng, exposure_s=exposure, origin_px=(x0, y0))
     return result(REASON_EARTH_SHADOW if f_sun == 0.0 else "", exposure)
+
+
+# ----------------------------------------------------------------------------------------------
+# all views of one epoch in one call (the faster rendered mode, issue 16 item 7)
+# ----------------------------------------------------------------------------------------------
+
+
+def _mip_level_at(tex: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """:func:`_mip_level` evaluated at the hit pixels ``(rows, cols)`` only (the same float32 operations
+    on the same neighbour differences, so the same values; ``tex`` (h, w, 2) is NaN off target)."""
+    big = np.float32(1e6)
+    h, w = tex.shape[:2]
+    here = tex[rows, cols]
+
+    def norm_to(d_row: int, d_col: int) -> np.ndarray:
+        r, c = rows + d_row, cols + d_col
+        ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        other = tex[np.clip(r, 0, h - 1), np.clip(c, 0, w - 1)]
+        d = other - here if d_row + d_col > 0 else here - other        # np.diff's order: later − earlier
+        n = np.sqrt((d ** 2).sum(-1))
+        return np.where(ok & np.isfinite(n), n, big)
+
+    rho = np.maximum(np.minimum(norm_to(1, 0), norm_to(-1, 0)), np.minimum(norm_to(0, 1), norm_to(0, -1)))
+    rho = np.where(rho >= big, 1.0, rho)
+    with np.errstate(divide="ignore"):
+        return np.log2(np.maximum(rho, 1.0)).astype(np.float32)
+
+
+#: meshes with more triangles than this are ray-cast over the whole ROI (the coverage raster would cost more)
+_COVERAGE_MAX_TRIANGLES = 20_000
+
+
+def _coverage(camera: PinholeCamera, target: Target, c_T: np.ndarray, R_TC: np.ndarray,
+              box: tuple[int, int, int, int]) -> np.ndarray | None:
+    """ROI pixels whose ray can hit the target: the union of the projected triangles, dilated by 2 px.
+
+    A ray through a pixel centre hits a triangle only if the centre lies inside the triangle's
+    projection (all vertices in front of the camera), so casting only these rays gives the hits of the
+    whole ROI.  ``None`` (cast everything) when a vertex is not in front of the camera or the mesh is large.
+    """
+    import cv2
+
+    if len(target.triangles) > _COVERAGE_MAX_TRIANGLES:
+        return None
+    X_C = (target.vertices_T - c_T) @ R_TC
+    if np.any(X_C[:, 2] <= 1e-3):
+        return None
+    x0, y0, x1, y1 = box
+    u = camera.fx * X_C[:, 0] / X_C[:, 2] + camera.cx - x0
+    v = camera.fy * X_C[:, 1] / X_C[:, 2] + camera.cy - y0
+    shift = 4  # sub-pixel vertices: 1/16 px
+    pts = np.rint(np.stack([u, v], -1) * (1 << shift)).astype(np.int32)[target.triangles]
+    lim = (1 << 30) >> shift
+    if np.any(np.abs(pts) >= lim << shift):
+        return None
+    cover = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    for tri in pts:  # one triangle at a time: cv2.fillPoly's even-odd rule would cancel overlaps
+        cv2.fillConvexPoly(cover, tri, 1, lineType=cv2.LINE_8, shift=shift)
+    return cv2.dilate(cover, np.ones((5, 5), np.uint8)).astype(bool)
+
+
+def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, q_HT: ArrayLike,
+                 sun_H: ArrayLike, *, rngs: list[np.random.Generator], sensor: SensorModel | None = None,
+                 sun_visible_fraction: float = 1.0, ambient: float = 0.0, specular: bool = True,
+                 shadows: bool = True, roi: bool = True, roi_margin_px: int = 16) -> list[RenderResult]:
+    """:func:`render` of the n views of one epoch in one call: the same :class:`RenderResult` per view.
+
+    The rays of all views go to Open3D in one ``cast_rays`` call and the shadow rays in one
+    ``test_occlusions`` call, the mip level is computed at the hit pixels only, and the camera rays
+    are built from one row and one column of normalised coordinates; per-view matrix products keep
+    their shapes, so every output array equals :func:`render`'s (``tests/vision/test_render_batch.py``).
+
+    Parameters
+    ----------
+    cameras : list of n PinholeCamera
+    T_CW : array_like, shape (n, 4, 4)
+        Camera poses (world = Hill frame H).
+    rngs : list of n Generator
+        The sensor-noise stream of each view (what :func:`render` takes as ``rng``).
+    target, q_HT, sun_H, sensor, sun_visible_fraction, ambient, specular, shadows, roi, roi_margin_px :
+        As in :func:`render`.
+    """
+    import open3d as o3d
+
+    T_all = check_pose(T_CW, name="T_CW")
+    if T_all.ndim != 3 or len(T_all) != len(cameras) or len(rngs) != len(cameras):
+        raise ValueError(f"cameras, T_CW, rngs: need one each per view, got {len(cameras)}, "
+                         f"{T_all.shape}, {len(rngs)}")
+    f_sun = float(sun_visible_fraction)
+    if not 0.0 <= f_sun <= 1.0:
+        raise ValueError(f"sun_visible_fraction must be in [0, 1], got {sun_visible_fraction!r}")
+    if not (np.isfinite(ambient) and ambient >= 0):
+        raise ValueError(f"ambient must be >= 0, got {ambient!r}")
+    sensor = SensorModel() if sensor is None else sensor
+    views = []
+    for cam, T_v, rng in zip(cameras, T_all, rngs, strict=True):
+        T, q, s_H = _validate(cam, T_v, target, q_HT, sun_H)
+        R_HT = matrix_from_quat(q)
+        H, W = cam.height, cam.width
+        v = {"cam": cam, "T": T, "rng": np.random.default_rng(rng),
+             "image": np.zeros((H, W), dtype=sensor.dtype), "radiance": np.zeros((H, W), dtype=np.float32),
+             "depth": np.full((H, W), np.nan, dtype=np.float32), "mask": np.zeros((H, W), dtype=bool),
+             "X": np.full((H, W, 3), np.nan, dtype=np.float32), "tri": np.full((H, W), -1, dtype=np.int32),
+             "lit": np.zeros((H, W), dtype=bool), "exposure": float("nan")}
+        if roi:
+            box, reason = roi_of_target(cam, T, target, q, margin_px=int(roi_margin_px))
+        else:
+            box = (0, 0, W, H)
+            _, st = roi_of_target(cam, T, target, q, margin_px=int(roi_margin_px))
+            reason = st if st == REASON_BEHIND_CAMERA else ""
+        v["box"], v["reason"] = box, reason
+        if not reason:
+            x0, y0, x1, y1 = box
+            c_T, R_TC = _pose_in_body(T, R_HT)
+            cover = _coverage(cam, target, c_T, R_TC, box)
+            if cover is None:
+                cover = np.ones((y1 - y0, x1 - x0), dtype=bool)
+            rows, cols = np.nonzero(cover)                              # row-major, as render's [hit]
+            d_C = np.empty((len(rows), 3))
+            d_C[:, 0] = (cols + x0 - cam.cx) / cam.fx
+            d_C[:, 1] = (rows + y0 - cam.cy) / cam.fy
+            d_C[:, 2] = 1.0
+            rays = np.empty((len(rows), 6), dtype=np.float32)
+            rays[:, :3] = c_T
+            rays[:, 3:] = d_C @ R_TC.T
+            v.update(c_T=c_T, R_TC=R_TC, cover=cover, rows=rows, cols=cols, rays=rays)
+        views.append(v)
+    s_T = R_HT.T @ s_H
+    cast = [v for v in views if not v["reason"]]
+    if cast:
+        hits = target.scene.cast_rays(o3d.core.Tensor(np.concatenate([v["rays"] for v in cast])))
+        t_all = hits["t_hit"].numpy()
+        pid_all = hits["primitive_ids"].numpy()
+        uv_all = hits["primitive_uvs"].numpy()
+    start = 0
+    occl = []
+    for v in cast:
+        x0, y0, x1, y1 = v["box"]
+        h, w = y1 - y0, x1 - x0
+        n_rays = len(v["rays"])
+        sl = slice(start, start + n_rays)
+        start += n_rays
+        got = np.isfinite(t_all[sl])
+        rows, cols = v["rows"][got], v["cols"][got]
+        hit = np.zeros((h, w), dtype=bool)
+        hit[rows, cols] = True
+        v["hit"] = hit
+        if not got.any():
+            v["reason"] = REASON_OUTSIDE_FOV
+            continue
+        tid = pid_all[sl][got].astype(np.int64)
+        bary = uv_all[sl][got].astype(np.float64)
+        X = target.point_on_triangles(tid, bary)
+        z = ((X - v["c_T"]) @ v["R_TC"])[:, 2]
+        n = target.triangle_normals_T[tid]
+        vv = v["c_T"] - X
+        vv /= np.linalg.norm(vv, axis=1, keepdims=True)
+        n = np.where((np.sum(n * vv, axis=1) < 0)[:, None], -n, n)
+        tex = np.full((h, w, 2), np.nan, dtype=np.float32)
+        tex_hit = target.texture_coords(tid, bary).astype(np.float32)
+        tex[rows, cols] = tex_hit
+        level = _mip_level_at(tex, rows, cols)
+        albedo = target.sample_albedo(tex_hit, level, tid).astype(np.float64)
+        cos_i = n @ s_T
+        lit = cos_i > 0.0
+        v.update(tid=tid, X_hit=X, z=z, n=n, view_dir=vv, albedo=albedo, cos_i=cos_i, lit_hit=lit)
+        if shadows and lit.any():
+            eps = max(1e-3, 1e-4 * target.radius_m)
+            idx = np.nonzero(lit)[0]
+            sray = np.empty((len(idx), 6), dtype=np.float32)
+            sray[:, :3] = X[idx] + eps * n[idx]
+            sray[:, 3:] = s_T
+            occl.append((v, idx, sray))
+    if occl:
+        occluded = target.scene.test_occlusions(o3d.core.Tensor(np.concatenate([o[2] for o in occl]))).numpy()
+        start = 0
+        for v, idx, _ in occl:
+            v["lit_hit"][idx[occluded[start:start + len(idx)].astype(bool)]] = False
+            start += len(idx)
+    out = []
+    for v in views:
+        if v["reason"]:
+            out.append(RenderResult(v["image"], v["radiance"], v["depth"], v["mask"], v["X"], v["tri"], v["lit"],
+                                    v["box"], v["reason"], v["cam"], v["T"], float("nan")))
+            continue
+        tid, lit, n, albedo = v["tid"], v["lit_hit"], v["n"], v["albedo"]
+        L = albedo * np.maximum(v["cos_i"], 0.0) * lit
+        if specular:
+            ks = np.array([m.specular for m in target.materials])[target.triangle_material[tid]]
+            ns = np.array([m.shininess for m in target.materials])[target.triangle_material[tid]]
+            hvec = s_T + v["view_dir"]
+            hvec /= np.maximum(np.linalg.norm(hvec, axis=1, keepdims=True), 1e-12)
+            L = L + ks * np.maximum(np.sum(n * hvec, axis=1), 0.0) ** ns * lit
+        L = f_sun * L + ambient * albedo
+        x0, y0, x1, y1 = v["box"]
+        hit = v["hit"]
+        rs = (slice(y0, y1), slice(x0, x1))
+        rad_roi = np.zeros(hit.shape, dtype=np.float32)
+        rad_roi[hit] = L
+        v["radiance"][rs] = rad_roi
+        v["depth"][rs][hit] = v["z"]
+        v["mask"][rs] = hit
+        v["X"][rs][hit] = v["X_hit"]
+        v["tri"][rs][hit] = tid
+        v["lit"][rs][hit] = lit & (f_sun > 0)
+        exposure = sensor.exposure_for(rad_roi)
+        v["image"][rs] = sensor.apply(rad_roi, rng=v["rng"], exposure_s=exposure, origin_px=(x0, y0))
+        out.append(RenderResult(v["image"], v["radiance"], v["depth"], v["mask"], v["X"], v["tri"], v["lit"],
+                                v["box"], REASON_EARTH_SHADOW if f_sun == 0.0 else "", v["cam"], v["T"], exposure))
+    return out
