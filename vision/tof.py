@@ -14,9 +14,9 @@ Physics of one pixel (:func:`render_tof_frame`):
   illumination co-located with the lens, Lambertian surfaces);
 * the pixel phasor is the mean of its sub-ray phasors, so a pixel straddling a depth edge measures
   a range between the two surfaces (a *mixed* or "flying" pixel) and a pixel straddling a marker
-  edge measures an intermediate amplitude (with ``dot_edge="coverage"`` a sub-ray on a dot's edge
-  is itself shaded by the fraction of its footprint that the dot covers, so the image changes
-  smoothly with the pose);
+  edge measures an intermediate amplitude; a sub-ray on a dot's edge is itself shaded by the
+  fraction of its cell that the dot covers (:func:`box_edge_coverage`, default ``dot_edge="coverage"``),
+  so the pixel integrates its area as a sensor pixel does and the image changes smoothly with the pose;
 * noise is complex Gaussian on the phasor with per-component standard deviation
   ``σ = sqrt(κ (A + B) + σ_read²)`` (photon shot noise of signal and ambient ``B``, plus read
   noise), so the amplitude noise is ``σ`` and the range noise is ``c / (4π f_mod) · σ / A``: it
@@ -50,6 +50,7 @@ __all__ = [
     "CooperativeTarget",
     "TofFrame",
     "render_tof_frame",
+    "box_edge_coverage",
     "points_from_pixel_range",
     "pixel_range_from_points",
 ]
@@ -376,9 +377,29 @@ def _check_pose(R_SC: ArrayLike, r_CS_S: ArrayLike) -> tuple[np.ndarray, np.ndar
     return R, r
 
 
+def box_edge_coverage(x: ArrayLike, a: ArrayLike, b: ArrayLike) -> np.ndarray:
+    """Fraction of a square cell on the inner side of a straight edge (the cell's area integration).
+
+    The cell's footprint projected on the edge normal is distributed as the sum of two centred
+    uniform variables of widths ``a`` and ``b`` (its two sides projected on the normal), so the
+    covered fraction is their CDF at ``x``, the signed distance from the cell centre to the edge
+    (positive: the centre is on the inner side): quadratic, linear, quadratic.  ``x``, ``a``, ``b``
+    in one length unit, broadcastable.
+    """
+    x, a, b = (np.asarray(v, dtype=float) for v in (x, a, b))
+    hi, lo = np.maximum(a, b), np.maximum(np.minimum(a, b), 1e-12)
+    hi = np.maximum(hi, 1e-12)
+    s, d = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    xc = np.clip(x, -s, s)
+    lower = (xc + s) ** 2 / (2.0 * hi * lo)
+    mid = (xc + 0.5 * hi) / hi
+    upper = 1.0 - (s - xc) ** 2 / (2.0 * hi * lo)
+    return np.where(xc <= -d, lower, np.where(xc < d, mid, upper))
+
+
 def render_tof_frame(camera: TofCamera, target: CooperativeTarget, R_SC: ArrayLike, r_CS_S: ArrayLike,
                      *, rng: np.random.Generator | int | None = None, supersample: int = 3,
-                     ambient_dn: float = 0.0, noise: bool = True, dot_edge: str = "point") -> TofFrame:
+                     ambient_dn: float = 0.0, noise: bool = True, dot_edge: str = "coverage") -> TofFrame:
     """Render the amplitude and radial-range images of ``target`` seen by ``camera``.
 
     Parameters
@@ -397,14 +418,16 @@ def render_tof_frame(camera: TofCamera, target: CooperativeTarget, R_SC: ArrayLi
         Ambient (unmodulated) light per pixel, in DN: adds shot noise and can saturate.
     noise : bool
         False gives the noise-free expected frame (phasor mean of the sub-rays).
-    dot_edge : {"point", "coverage"}
-        How a sub-ray that lands on a dot's edge is shaded.  ``"point"`` (default, the renderer of
-        the published results): by the dot's reflectivity at the sub-ray's centre, which quantises
-        the edge in steps of ``1/supersample²`` of a pixel and puts a pose-dependent staircase of
-        about 0.016 px RMS (3 × 3 sub-rays, 1 m) on the centroids.  ``"coverage"``: by the fraction
-        of its footprint (a cell of ``1/supersample`` px, stretched by ``1/sqrt(cos θ)``) that the
-        dot covers, a linear ramp over the footprint's width, so the image, and a dot's centroid,
-        change smoothly with the pose (the pixel-area integration of a real sensor).
+    dot_edge : {"coverage", "point"}
+        How a sub-ray that lands on a dot's edge is shaded.  ``"coverage"`` (default): by the
+        fraction of its cell (``1/supersample`` px square) whose footprint on the plate the dot
+        covers, with the edge taken as straight across the cell (:func:`box_edge_coverage` of the
+        cell's sides projected on the edge normal): the pixel-area integration of a real sensor, so
+        the image and a dot's centre change smoothly with the pose.  ``"point"`` (the renderer of
+        the results published before issue 19): by the dot's reflectivity at the sub-ray's centre,
+        which quantises the edge in steps of ``1/supersample²`` of a pixel and puts a pose-dependent
+        staircase of about 0.016 px RMS (3 × 3 sub-rays, 1 m) on the dots' centroids, an artefact of
+        the sampling that no sensor has.
 
     Returns
     -------
@@ -444,9 +467,20 @@ def render_tof_frame(camera: TofCamera, target: CooperativeTarget, R_SC: ArrayLi
         p_C = origin_C[:2] + t_safe.ravel()[sel, None] * dirs_C.reshape(-1, 3)[sel, :2]
         d2 = ((p_C[:, None, :] - dots) ** 2).sum(-1).min(-1)
         if dot_edge == "coverage":
-            # fraction of the sub-ray's footprint (its cell of 1/s px, stretched by 1/sqrt(cos θ)) inside the dot
-            foot = t_safe.ravel()[sel] / (camera.fx_px * supersample) / np.sqrt(np.maximum(cos_inc.ravel()[sel], 0.05))
-            cover = np.clip(0.5 - (np.sqrt(d2) - target.plate.marker_radius_m) / foot, 0.0, 1.0)
+            # fraction of the sub-ray's cell (1/s px square) whose footprint on the plate lies inside the
+            # dot: the dot's edge taken as straight across the cell, the cell's footprint projected on the
+            # edge normal m is the sum of two uniform widths |m·∂p/∂u|/s and |m·∂p/∂v|/s (box_edge_coverage)
+            nearest = ((p_C[:, None, :] - dots) ** 2).sum(-1).argmin(-1)
+            dist = np.maximum(np.sqrt(d2), 1e-12)
+            m_S = ((p_C - dots[nearest]) / dist[:, None]) @ R[:, :2].T          # in-plane radial direction in S
+            e_S = dirs_S.reshape(-1, 3)[sel]
+            d_S = e_S / e_S[:, 2:3]                                               # ray (x/z, y/z, 1)
+            z_hit = t_safe.ravel()[sel] * e_S[:, 2]
+            n_S = R[:, 2]
+            nd, md = d_S @ n_S, (m_S * d_S).sum(-1)
+            w_u = np.abs(z_hit / camera.fx_px * (m_S[:, 0] - md * n_S[0] / nd)) / supersample
+            w_v = np.abs(z_hit / camera.fy_px * (m_S[:, 1] - md * n_S[1] / nd)) / supersample
+            cover = box_edge_coverage(target.plate.marker_radius_m - dist, w_u, w_v)
             refl.ravel()[sel] = (cover * target.plate.marker_reflectivity
                                  + (1.0 - cover) * target.plate.plate_reflectivity)
         else:

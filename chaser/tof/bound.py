@@ -15,8 +15,11 @@ and ``σ_r = sqrt(tr P_rr)`` the RMS position error of the plate origin.
 SR4000 model of :mod:`vision.tof` (phasor noise ``σ² = κ (A + B) + σ_read²``, range noise
 ``c/(4π f_mod) σ / A``): the plate-plane range of :func:`chaser.tof.extract_markers` averages
 the ``N`` plate pixels of the ring around the dot (``σ_ρ = σ_pixel / √N``, intercept of a plane
-fitted on a support centred on the dot), and the contrast-weighted centroid (eqs 9–11, flag
-P000-5) has ``σ_u = σ_A sqrt(Σ x²) / Σ w`` over its support.
+fitted on a support centred on the dot), and the dot centre's ``σ_u`` is the Cramér–Rao bound of
+the centre from the amplitudes of the pixels around the dot (:func:`chaser.tof.dotfit.dot_centre_fisher`),
+which the dot-model fit reaches; for the contrast-weighted centroid (eqs 9–11, flag P000-5) it is
+``σ_A sqrt(Σ x²) / Σ w`` over its support.  The pose bound is therefore the bound of a pose from the
+key points, each measured as well as its own pixels allow.
 
 Frames: ``S`` camera (OpenCV), ``C`` marker plate; ``p_S = R_SC q_C + r_CS_S`` (000 eq 1).
 """
@@ -28,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from chaser.tof.dotfit import dot_centre_fisher
 from vision.tof import MarkerPlate, TofCamera
 
 __all__ = ["TofPoseBound", "tof_pose_bound", "measurement_model", "ml_pose_refinement", "sr4000_marker_noise", "MarkerNoise"]
@@ -208,7 +212,8 @@ class MarkerNoise:
 
 def sr4000_marker_noise(camera: TofCamera, plate: MarkerPlate, R_SC: ArrayLike, r_CS_S: ArrayLike, *,
                         ambient_dn: float = 0.0, plane_support_factor: float = 3.0,
-                        centroid_dilate_px: int = 2) -> MarkerNoise:
+                        centroid_dilate_px: int = 2, centre_estimator: str = "fit",
+                        fit_margin_px: float = 2.5, fit_cells: int = 4) -> MarkerNoise:
     """Pixel and range noise of the pipeline's key points, from the TOF camera's noise model.
 
     For marker ``i`` at range ``ρ`` seen at angle ``θ`` to the plate normal (``c = cos θ``): plate and
@@ -220,9 +225,13 @@ def sr4000_marker_noise(camera: TofCamera, plate: MarkerPlate, R_SC: ArrayLike, 
       ``N = π (k r_px)² − π (r_px + d + 1)(c r_px + d + 1)`` plate pixels within ``k = plane_support_factor``
       dot radii, outside the dot dilated by ``d + 1`` px; ``σ_ρ = σ_pix / √N`` (the intercept of a
       plane fitted on a support centred on the key point);
-    * centroid (eqs 9–11 with flag P000-5): weights ``w = A_p − A`` over the dot dilated by ``d``,
-      ``Σ w = (A_p − A_d) π c r_px²``, ``σ_u = σ_A sqrt(Σ x²) / Σ w`` with ``Σ x² = π a³ b / 4`` over
-      the support ellipse ``a = r_px + d``, ``b = c r_px + d``.
+    * centre, ``centre_estimator="fit"`` (default): the Cramér–Rao bound of the dot centre from the
+      amplitudes of the pixels within ``r_px + fit_margin_px`` of it
+      (:func:`chaser.tof.dotfit.dot_centre_fisher`: the dot's image model at the true pose, the
+      plate's brightness and the contrast as nuisance parameters), ``σ_u = sqrt(tr Σ_uv / 2)``;
+    * centre, ``"centroid"`` (eqs 9–11 with flag P000-5): weights ``w = A_p − A`` over the dot dilated
+      by ``d``, ``Σ w = (A_p − A_d) π c r_px²``, ``σ_u = σ_A sqrt(Σ x²) / Σ w`` with
+      ``Σ x² = π a³ b / 4`` over the support ellipse ``a = r_px + d``, ``b = c r_px + d``.
 
     Parameters
     ----------
@@ -233,15 +242,18 @@ def sr4000_marker_noise(camera: TofCamera, plate: MarkerPlate, R_SC: ArrayLike, 
         True pose (m).
     ambient_dn : float
         Ambient light (DN).
-    plane_support_factor, centroid_dilate_px
+    plane_support_factor, centroid_dilate_px, centre_estimator, fit_margin_px, fit_cells
         As in :class:`chaser.tof.ExtractionSettings`.
 
     Returns
     -------
     MarkerNoise
     """
+    if centre_estimator not in ("fit", "centroid"):
+        raise ValueError(f"centre_estimator: must be 'fit' or 'centroid', got {centre_estimator!r}")
     R = np.asarray(R_SC, dtype=float)
-    p = plate.markers_C @ R.T + np.asarray(r_CS_S, dtype=float)
+    r_CS = np.asarray(r_CS_S, dtype=float)
+    p = plate.markers_C @ R.T + r_CS
     rho = np.linalg.norm(p, axis=1)
     e = p / rho[:, None]
     c = np.clip(np.abs(e @ R[:, 2]), 1e-3, 1.0)
@@ -252,8 +264,22 @@ def sr4000_marker_noise(camera: TofCamera, plate: MarkerPlate, R_SC: ArrayLike, 
     d = int(centroid_dilate_px)
     n_ring = np.maximum(np.pi * (plane_support_factor * r_px) ** 2 - np.pi * (r_px + d + 1) * (c * r_px + d + 1), 8.0)
     sigma_rho = camera.range_sigma_m(a_p, ambient_dn) / np.sqrt(n_ring)
-    ax, bx = r_px + d, c * r_px + d
-    sum_x2 = np.pi * ax**3 * bx / 4.0
-    sum_w = (a_p - a_d) * np.pi * c * r_px**2
-    sigma_px = camera.phasor_sigma_dn(a_p, ambient_dn) * np.sqrt(sum_x2) / sum_w
+    if centre_estimator == "centroid":
+        ax, bx = r_px + d, c * r_px + d
+        sum_x2 = np.pi * ax**3 * bx / 4.0
+        sum_w = (a_p - a_d) * np.pi * c * r_px**2
+        sigma_px = camera.phasor_sigma_dn(a_p, ambient_dn) * np.sqrt(sum_x2) / sum_w
+        return MarkerNoise(sigma_px, sigma_rho, r_px, c)
+    uv = np.column_stack([camera.fx_px * p[:, 0] / p[:, 2] + camera.cx_px, camera.fy_px * p[:, 1] / p[:, 2] + camera.cy_px])
+    n_S, h_m = R[:, 2], float(R[:, 2] @ r_CS)
+    sigma_px = np.empty(len(p))
+    for i in range(len(p)):
+        rad = r_px[i] + fit_margin_px
+        gv, gu = np.mgrid[int(np.floor(uv[i, 1] - rad)):int(np.ceil(uv[i, 1] + rad)) + 1,
+                          int(np.floor(uv[i, 0] - rad)):int(np.ceil(uv[i, 0] + rad)) + 1]
+        win = np.hypot(gu - uv[i, 0], gv - uv[i, 1]) <= rad
+        params = np.array([uv[i, 0], uv[i, 1], a_p[i], 0.0, 0.0, 1.0 - plate.marker_reflectivity / plate.plate_reflectivity])
+        P = dot_centre_fisher(gu[win].astype(float), gv[win].astype(float), camera, n_S, h_m, plate.marker_radius_m,
+                              params, sub=fit_cells, ambient_dn=ambient_dn)
+        sigma_px[i] = np.sqrt(np.trace(P) / 2.0)
     return MarkerNoise(sigma_px, sigma_rho, r_px, c)

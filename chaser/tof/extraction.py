@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
+from chaser.tof.dotfit import fit_dot
 from vision.tof import MarkerPlate, TofCamera, TofFrame, points_from_pixel_range
 
 __all__ = ["ExtractionSettings", "ExtractionThresholds", "MarkerDetections", "log_kernel", "extract_markers"]
@@ -79,8 +80,27 @@ class ExtractionSettings:
     plane_support_factor : float
         For ``"plane"``: the plate pixels within this many (predicted) dot radii of the key point
         support the plane.
+    centre_estimator : {"fit", "centroid"}
+        ``"fit"`` (default): the dot centre is the weighted least-squares fit of the dot's image model
+        (:mod:`chaser.tof.dotfit`: a disc of the known radius in the local plate plane, pixel-area
+        coverage, the plate's brightness and the contrast free), started from the centroid; the
+        centroid is kept where the fit fails.  ``"centroid"``: the contrast-weighted centroid of
+        eqs 9–11 (flag P000-5), which is offset from the projected dot centre by perspective and by
+        the plate's brightness gradient (0.01–0.05 px at 1 m).
+    fit_margin_px : float
+        For ``"fit"``: the fit window is the pixels within ``r_px + fit_margin_px`` of the centroid
+        (``r_px`` the dot's radius in pixels at the plate-plane range).
+    fit_cells : int
+        For ``"fit"``: cells per pixel and axis of the model's area integration.
+    fit_max_chi2 : float
+        For ``"fit"``: a fit whose χ² per degree of freedom exceeds this (the blob is not a dot of
+        the model's size) keeps the centroid.
+    fallback_sigma_px : float
+        For ``"fit"``: standard error (px) given to a centroid kept where the fit failed, so that a
+        pose weighting the key points by it does not trust its systematic offset (0.01–0.08 px at 1 m
+        on clean dots, more on a dot next to the plate's edge).
     depth_edge_m : float
-        For ``"plane"``: plate pixels whose 3×3 neighbourhood spans more range than this (depth
+        For ``"plane"`` and ``"fit"``: plate pixels whose 3×3 neighbourhood spans more range than this (depth
         edges, where the mixed pixels are) are left out of the plane fit.
     """
 
@@ -98,6 +118,11 @@ class ExtractionSettings:
     max_eccentricity: float = 0.95
     centroid_dilate_px: int = 2
     range_estimator: str = "plane"
+    centre_estimator: str = "fit"
+    fit_margin_px: float = 2.5
+    fit_cells: int = 4
+    fit_max_chi2: float = 10.0
+    fallback_sigma_px: float = 0.05
     hole_depth_frac: float | None = 0.25
     depth_edge_m: float = 0.02
     plane_support_factor: float = 3.0
@@ -105,8 +130,15 @@ class ExtractionSettings:
     def __post_init__(self) -> None:
         if self.range_estimator not in ("mean", "plane"):
             raise ValueError(f"range_estimator: must be 'mean' or 'plane', got {self.range_estimator!r}")
-        for key in ("grey_threshold_frac", "grey_peak_frac", "depth_edge_m", "plane_support_factor", "n_max_factor", "log_threshold_frac", "log_peak_frac",
-                    "area_max_frac", "max_eccentricity"):
+        if self.centre_estimator not in ("fit", "centroid"):
+            raise ValueError(f"centre_estimator: must be 'fit' or 'centroid', got {self.centre_estimator!r}")
+        if not np.isfinite(self.fit_margin_px) or self.fit_margin_px <= 0:
+            raise ValueError(f"fit_margin_px: must be finite and > 0, got {self.fit_margin_px!r}")
+        if int(self.fit_cells) != self.fit_cells or self.fit_cells < 1:
+            raise ValueError(f"fit_cells: must be an integer >= 1, got {self.fit_cells!r}")
+        for key in ("grey_threshold_frac", "grey_peak_frac", "depth_edge_m", "plane_support_factor", "n_max_factor",
+                    "log_threshold_frac", "log_peak_frac", "area_max_frac", "max_eccentricity", "fit_max_chi2",
+                    "fallback_sigma_px"):
             v = getattr(self, key)
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"{key}: must be finite and > 0, got {v!r}")
@@ -139,7 +171,8 @@ class MarkerDetections:
     Attributes
     ----------
     uv_px : (n, 2) ndarray
-        Contrast-weighted centroids (u, v) in pixels (eqs 9–11, flag P000-5).
+        Dot centres (u, v) in pixels: the dot-model fit (``centre_estimator="fit"``) or the
+        contrast-weighted centroid (eqs 9–11, flag P000-5).
     range_m : (n,) ndarray
         Range of each key point (eq 12, or the plate-plane estimate).
     points_S : (n, 3) ndarray
@@ -150,8 +183,13 @@ class MarkerDetections:
         Pixels in each accepted component.
     eccentricity : (n,) ndarray
     centroid_sigma_px : (n,) ndarray
-        Standard error of each centroid coordinate (px): ``σ_A sqrt(Σ w_x x²) / Σ w`` with ``σ_A``
+        Standard error of each centre coordinate (px), ``sqrt(tr Σ_uv / 2)``.
+    centre_cov_px2 : (n, 2, 2) ndarray
+        Covariance ``Σ_uv`` of each centre (px²): of the dot fit, ``(JᵀWJ)⁻¹`` with the camera's
+        amplitude noise; of the centroid, ``σ² I`` with ``σ = σ_A sqrt(Σ w_x x²) / Σ w`` and ``σ_A``
         the robust spread of the amplitudes of the plate ring around the dot (eqs 9–11 propagated).
+    centre_fitted : (n,) bool ndarray
+        True where the centre is the dot-model fit, False where it is the centroid.
     thresholds : ExtractionThresholds
     failure_reason : str
         Empty when key points were extracted; otherwise why none were ("all pixels saturated",
@@ -167,6 +205,8 @@ class MarkerDetections:
     thresholds: ExtractionThresholds = field(default_factory=ExtractionThresholds)
     failure_reason: str = ""
     centroid_sigma_px: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    centre_cov_px2: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    centre_fitted: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
     @property
     def ok(self) -> bool:
@@ -204,7 +244,8 @@ def log_kernel(sigma_px: float) -> np.ndarray:
 
 
 def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
-                    settings: ExtractionSettings | None = None) -> MarkerDetections:
+                    settings: ExtractionSettings | None = None,
+                    plate_plane_S: tuple[np.ndarray, float] | None = None) -> MarkerDetections:
     """Extract the dark-marker key points of one TOF frame (000 §2, corrected).
 
     Steps: valid pixels → grey threshold ``I ≤ I_t`` and keep the darkest ``N_max`` (active set
@@ -222,6 +263,11 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     plate : MarkerPlate
         Marker radius and count (for the predicted dot size and ``N_max``).
     settings : ExtractionSettings, optional
+    plate_plane_S : (n_S (3,), h_m), optional
+        The plate plane ``n_S · p_S = h`` (unit normal in S, offset in m) that the dot fit
+        (``centre_estimator="fit"``) takes for the dots' shape, e.g. from a pose of the whole plate;
+        None: the plane fitted to the range pixels around each dot.  The key points' ranges come
+        from the local planes either way.
 
     Returns
     -------
@@ -315,18 +361,21 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     if accepted.size == 0:
         return _empty_detections(_why_none(frame, camera, dot_px) or "no marker candidates", thr)
 
-    if s.range_estimator == "plane":
+    if s.range_estimator == "plane" or s.centre_estimator == "fit":
         # mixed pixels sit on depth edges: exclude pixels whose 3x3 range spread exceeds depth_edge_m
         r_hi = np.where(valid, rng_img, np.inf).astype(np.float32)
         r_lo = np.where(valid, rng_img, -np.inf).astype(np.float32)
         k3 = np.ones((3, 3), np.uint8)
         smooth = (cv2.dilate(r_hi, k3) - cv2.erode(r_lo, k3)) <= s.depth_edge_m
+        # pixels without a range enclosed by returns: dot cores below the confidence threshold
+        holes = ndimage.binary_fill_holes(valid | frame.saturated) & ~valid & ~np.asarray(frame.saturated, bool)
     objects = ndimage.find_objects(labels)
     d = int(s.centroid_dilate_px)
     ring_in, ring_out = d + 1, d + 3
     sup_px = s.plane_support_factor * r_dot * f_mean / med_r                     # per component
-    pad = int(max(ring_out, np.ceil(sup_px[ok].max()))) + 1
-    uv, uv_sig, rho, rho_sig, cnt, ecc_out = [], [], [], [], [], []
+    fit_px = r_dot * f_mean / med_r + s.fit_margin_px
+    pad = int(max(ring_out, np.ceil(sup_px[ok].max()), np.ceil(fit_px[ok].max()))) + 1
+    uv, uv_cov, fitted, rho, rho_sig, cnt, ecc_out = [], [], [], [], [], [], []
     for lab in accepted:
         sl = objects[lab - 1]
         v0, v1 = max(sl[0].start - pad, 0), min(sl[0].stop + pad, amp.shape[0])
@@ -347,6 +396,32 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
         sig_a = 1.4826 * float(np.median(np.abs(diff - np.median(diff)))) / np.sqrt(2.0) if diff.size >= 8 else i_local
         x2 = float(((gu + u0 - uc) ** 2 * support).sum() + ((gv + v0 - vc) ** 2 * support).sum()) / 2.0
         sig_uv = max(sig_a, 1.0) * np.sqrt(x2) / float(w.sum())
+        cov_uv, is_fit = sig_uv**2 * np.eye(2), False
+        plane = None
+        if s.range_estimator == "plane" or s.centre_estimator == "fit":
+            near = (gu + u0 - uc) ** 2 + (gv + v0 - vc) ** 2 <= sup_px[lab - 1] ** 2
+            on_plate = near & ok_w & (a_w > i_t) & smooth[v0:v1, u0:u1] & ~_dilate(comp, ring_in)
+            plane = _plate_plane(gu[on_plate] + u0, gv[on_plate] + v0, r_w[on_plate], uc, vc, camera)
+        if s.centre_estimator == "fit" and plane is not None:
+            shape = plane if plate_plane_S is None else (np.asarray(plate_plane_S[0], float), float(plate_plane_S[1]), 0.0)
+            n_S, h_m, _ = shape
+            r_px = r_dot * f_mean / _plane_ray_range(shape, uc, vc, camera)
+            pu, pv = (gu + u0).ravel(), (gv + v0).ravel()
+            rr = np.hypot(pu - uc, pv - vc).reshape(comp.shape)
+            # off the plate: a return farther from the plane than 4 of its own range sigmas + 2 mm (the body
+            # behind the plate, 55 mm), or no return that is not enclosed by returns (beyond the plate's
+            # edge); their neighbours are mixed pixels
+            tol = 4.0 * camera.range_sigma_m(np.maximum(a_w, 1.0)) + 0.002
+            off = np.where(ok_w, np.abs(r_w - _plane_ray_range(plane, gu + u0, gv + v0, camera)) > tol,
+                           ~holes[v0:v1, u0:u1])
+            win = (rr <= r_px + s.fit_margin_px) & ~np.asarray(frame.saturated)[v0:v1, u0:u1] & ~_dilate(off, 1)
+            if win.sum() >= 12:
+                fit = fit_dot(a_w[win], (gu + u0)[win], (gv + v0)[win], camera, n_S, h_m, r_dot, (uc, vc), i_local,
+                              sub=int(s.fit_cells), max_shift_px=max(1.0, 0.5 * r_px))
+                if fit.ok and fit.chi2_per_dof < s.fit_max_chi2:
+                    (uc, vc), cov_uv, is_fit = fit.uv_px, fit.cov_uv_px2, True
+        if s.centre_estimator == "fit" and not is_fit:
+            cov_uv = max(sig_uv, s.fallback_sigma_px) ** 2 * np.eye(2)
         if s.range_estimator == "mean":
             r_pix = r_w[comp & ok_w]
             if r_pix.size < 2:
@@ -354,25 +429,24 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
             rho_i = float(r_pix.mean())
             sig_i = float(r_pix.std(ddof=1) / np.sqrt(r_pix.size))
         else:
-            near = (gu + u0 - uc) ** 2 + (gv + v0 - vc) ** 2 <= sup_px[lab - 1] ** 2
-            plate = near & ok_w & (a_w > i_t) & smooth[v0:v1, u0:u1] & ~_dilate(comp, ring_in)
-            est = _plane_range(gu[plate] + u0, gv[plate] + v0, r_w[plate], uc, vc, camera)
-            if est is None:
+            if plane is None:
                 continue
-            rho_i, sig_i = est
-        uv.append((uc, vc))
-        uv_sig.append(sig_uv)
-        rho.append(rho_i)
-        rho_sig.append(sig_i)
+            rho_i, sig_i = _plane_ray_range(plane, uc, vc, camera), plane[2]
+        uv.append((float(uc), float(vc)))
+        uv_cov.append(cov_uv)
+        fitted.append(is_fit)
+        rho.append(float(rho_i))
+        rho_sig.append(float(sig_i))
         cnt.append(int(count[lab - 1]))
         ecc_out.append(float(ecc[lab - 1]))
     if not uv:
         return _empty_detections(_why_none(frame, camera, dot_px) or "no marker candidates", thr)
     uv_a = np.asarray(uv)
     rho_a = np.asarray(rho)
+    cov_a = np.asarray(uv_cov)
     pts = points_from_pixel_range(uv_a[:, 0], uv_a[:, 1], rho_a, camera)
     return MarkerDetections(uv_a, rho_a, pts, np.asarray(rho_sig), np.asarray(cnt, int), np.asarray(ecc_out), thr, "",
-                            np.asarray(uv_sig))
+                            np.sqrt(np.trace(cov_a, axis1=1, axis2=2) / 2.0), cov_a, np.asarray(fitted, bool))
 
 
 def _why_none(frame: TofFrame, camera: TofCamera, dot_px: float) -> str:
@@ -410,10 +484,18 @@ def _dilate(mask: np.ndarray, px: int) -> np.ndarray:
     return cv2.dilate(mask.astype(np.uint8), k).astype(bool)
 
 
-def _plane_range(u: np.ndarray, v: np.ndarray, r: np.ndarray, uc: float, vc: float,
-                 camera: TofCamera) -> tuple[float, float] | None:
-    """Range along the ray of ``(uc, vc)`` to the plane through the plate pixels around it, and its σ.
+def _plane_ray_range(plane: tuple[np.ndarray, float, float], u, v, camera: TofCamera):
+    """Radial range (m) along the ray of pixel ``(u, v)`` to the plane ``n_S · p = h`` of :func:`_plate_plane`."""
+    n_S, h_m, _ = plane
+    e = points_from_pixel_range(u, v, 1.0, camera)
+    return h_m / (e @ n_S)
 
+
+def _plate_plane(u: np.ndarray, v: np.ndarray, r: np.ndarray, uc: float, vc: float,
+                 camera: TofCamera) -> tuple[np.ndarray, float, float] | None:
+    """Plane ``n_S · p_S = h`` through the plate pixels around ``(uc, vc)``: ``(n_S, h_m, σ_ρ)``.
+
+    ``σ_ρ`` is the standard error (m) of the range along the ray of ``(uc, vc)`` to the plane.
     In axes ``(a, b, e)`` with ``e`` the unit ray of the key point, the back-projected plate pixels
     are fitted by ``z = c0 + c1 x + c2 y`` (least squares, refitted once without the pixels beyond
     3 robust σ); the ray meets the plane at range ``c0``, whose standard error
@@ -446,4 +528,6 @@ def _plane_range(u: np.ndarray, v: np.ndarray, r: np.ndarray, uc: float, vc: flo
     if dof < 5:
         return None
     var0 = float(np.linalg.inv(G)[0, 0]) * float(rk @ rk) / dof
-    return float(coef[0]), float(np.sqrt(var0))
+    n = e - coef[1] * a - coef[2] * b
+    norm = float(np.linalg.norm(n))
+    return n / norm, float(coef[0]) / norm, float(np.sqrt(var0))

@@ -2,8 +2,9 @@
 
 :func:`estimate_tof_pose` runs the whole chain of 000 §1.2 on one :class:`vision.tof.TofFrame`:
 marker extraction (:mod:`chaser.tof.extraction`, 000 §2), matching to the model and its pose check
-(:mod:`chaser.tof.matching`, 000 §3), and the weighted SVD pose (:mod:`chaser.tof.pose`, 000
-eqs 27–38, flag P000-10, docs/papers.md#p000-10).  The pose is reported as ``x, y, z``
+(:mod:`chaser.tof.matching`, 000 §3), the weighted SVD pose (:mod:`chaser.tof.pose`, 000
+eqs 27–38, flag P000-10, docs/papers.md#p000-10) and, by default, its maximum-likelihood refinement
+on the key points' pixels and ranges (:func:`chaser.tof.bound.ml_pose_refinement`).  The pose is reported as ``x, y, z``
 (``r_CS_S``) and pitch, yaw, roll (3-2-1 sequence, see :mod:`chaser.tof.pose`).
 
 Frames: ``S`` camera (OpenCV), ``C`` marker plate; ``p_S = R_SC q_C + r_CS_S`` (000 eq 1).
@@ -15,7 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from chaser.tof.bound import measurement_model, ml_pose_refinement
+from chaser.tof.bound import ml_pose_refinement
 from chaser.tof.extraction import ExtractionSettings, MarkerDetections, _why_none, extract_markers
 from chaser.tof.matching import (
     MatchSettings,
@@ -25,45 +26,16 @@ from chaser.tof.matching import (
     verify_labels,
 )
 from chaser.tof.pose import pitch_yaw_roll_from_matrix, weighted_svd_pose
-from vision.tof import CooperativeTarget, MarkerPlate, TofCamera, TofFrame, render_tof_frame
+from vision.tof import MarkerPlate, TofCamera, TofFrame
 
-__all__ = ["MATCHERS", "POSE_ESTIMATORS", "TofPoseResult", "estimate_tof_pose", "rendered_keypoint_bias"]
+__all__ = ["MATCHERS", "POSE_ESTIMATORS", "TofPoseResult", "estimate_tof_pose"]
 
 
 #: Matcher names accepted by :func:`estimate_tof_pose`.
 MATCHERS = ("mrf", "mrf-sinkhorn", "mrf-literal", "hungarian")
 
 #: Pose estimators accepted by :func:`estimate_tof_pose`.
-POSE_ESTIMATORS = ("svd", "ml", "ml-debiased")
-
-
-def rendered_keypoint_bias(R_SC: np.ndarray, r_CS_S: np.ndarray, labels: np.ndarray, camera: TofCamera,
-                           plate: MarkerPlate, extraction: ExtractionSettings | None = None,
-                           max_offset_px: float = 1.0) -> np.ndarray:
-    """Systematic error ``(δu, δv, δρ)`` ``(n, 3)`` of the key points of markers ``labels`` at a pose.
-
-    The noise-free frame of the plate (:func:`vision.tof.render_tof_frame` with ``noise=False`` and
-    dot edges shaded by coverage, the smooth pixel-area integration) is
-    run through :func:`chaser.tof.extract_markers`; each key point minus the projection and range of
-    its marker's centre (:func:`chaser.tof.bound.measurement_model`) is its bias.  It collects what
-    the centroid of eqs 9–11 (flag P000-5) does not model: perspective (the centroid of a dot's
-    image is not the image of its centre), the plate's brightness gradient under the contrast
-    weights, and the plane range along a shifted ray.  It does not contain the staircase of
-    point-sampled dot edges (``dot_edge="point"``), which no smooth model predicts.  Markers without a key point within
-    ``max_offset_px`` get 0.
-    """
-    frame0 = render_tof_frame(camera, CooperativeTarget(plate=plate), R_SC, r_CS_S, noise=False,
-                              dot_edge="coverage")
-    det0 = extract_markers(frame0, camera, plate, settings=extraction)
-    zhat, _ = measurement_model(R_SC, r_CS_S, plate.markers_C[labels], camera)
-    bias = np.zeros((len(labels), 3))
-    if det0.ok and det0.n:
-        dist = np.linalg.norm(det0.uv_px[None, :, :] - zhat[:, None, :2], axis=2)
-        j = dist.argmin(axis=1)
-        hit = dist[np.arange(len(labels)), j] <= max_offset_px
-        bias[hit, :2] = det0.uv_px[j[hit]] - zhat[hit, :2]
-        bias[hit, 2] = det0.range_m[j[hit]] - zhat[hit, 2]
-    return bias
+POSE_ESTIMATORS = ("svd", "ml")
 
 
 @dataclass(frozen=True)
@@ -117,7 +89,7 @@ def estimate_tof_pose(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
                       match_settings: MatchSettings | None = None,
                       extraction: ExtractionSettings | None = None, verify: bool = True,
                       gate_factor: float = 2.0, weighting: str = "inverse_variance",
-                      pose_estimator: str = "svd", debias_iterations: int = 2) -> TofPoseResult:
+                      pose_estimator: str = "ml") -> TofPoseResult:
     """Relative pose of the marker plate from one TOF frame (000 §2–§4, corrected).
 
     Parameters
@@ -136,16 +108,14 @@ def estimate_tof_pose(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     weighting : {"inverse_variance", "uniform"}
         SVD weights ``w_i`` (eq 28): ``1 / σ_i²`` from the range standard error of each key point
         (floored at 0.1 mm), or 1.
-    pose_estimator : {"svd", "ml", "ml-debiased"}
-        ``"svd"``: the weighted SVD of 000 eqs (27)–(38).  ``"ml"``: the SVD pose refined to the
-        maximum-likelihood pose of the key points' pixels and ranges
-        (:func:`chaser.tof.bound.ml_pose_refinement`, weights from their standard errors), which
-        reaches the Cramér–Rao bound of :func:`chaser.tof.bound.tof_pose_bound` on unbiased key
-        points.  ``"ml-debiased"``: the same, with the key points' systematic error at the current
-        pose (:func:`rendered_keypoint_bias`, a noise-free rendering of the plate) subtracted,
-        ``debias_iterations`` times.
-    debias_iterations : int
-        For ``"ml-debiased"``.
+    pose_estimator : {"ml", "svd"}
+        ``"ml"`` (default): the weighted SVD pose refined to the maximum-likelihood pose of the key
+        points' pixels and ranges (:func:`chaser.tof.bound.ml_pose_refinement`, weights from their
+        standard errors), which reaches the Cramér–Rao bound of :func:`chaser.tof.bound.tof_pose_bound`
+        on unbiased key points.  With fitted dot centres (``ExtractionSettings.centre_estimator="fit"``)
+        the dots are then fitted again with the plate plane of that pose for their shape, and the ML
+        step is repeated.  ``"svd"``: the weighted SVD of 000 eqs (27)–(38) alone, which weighs each 3-D
+        point isotropically by its range noise and so does not use the pixels' precision.
 
     Returns
     -------
@@ -191,14 +161,17 @@ def estimate_tof_pose(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     R_SC, r_CS_S = fit.R_SC, fit.r_CS_S
     if pose_estimator != "svd":
         lab = labels[sel]
-        uv, rho = det.uv_px[sel], det.range_m[sel]
-        s_px, s_rho = np.maximum(det.centroid_sigma_px[sel], 1e-4), np.maximum(det.range_sigma_m[sel], 1e-5)
-        n_it = int(debias_iterations) if pose_estimator == "ml-debiased" else 0
-        bias = np.zeros((sel.size, 3))
-        for it in range(n_it + 1):
+        for it in range(2 if (extraction or ExtractionSettings()).centre_estimator == "fit" else 1):
             if it:
-                bias = rendered_keypoint_bias(R_SC, r_CS_S, lab, camera, plate, extraction)
-            R_SC, r_CS_S = ml_pose_refinement(R_SC, r_CS_S, model[lab], uv - bias[:, :2], rho - bias[:, 2],
-                                              camera, s_px, s_rho)
+                # the dots' shape from the plate plane of the pose of all markers instead of each dot's local
+                # range plane, whose normal (0.2 deg of noise at 1 m) moves a fitted centre by about 0.003 px
+                det2 = extract_markers(frame, camera, plate, settings=extraction,
+                                       plate_plane_S=(R_SC[:, 2], float(R_SC[:, 2] @ r_CS_S)))
+                if not (det2.ok and det2.n == det.n and np.all(np.abs(det2.uv_px - det.uv_px) < 1.0)):
+                    break
+                det = det2
+            uv, rho = det.uv_px[sel], det.range_m[sel]
+            s_px, s_rho = np.maximum(det.centroid_sigma_px[sel], 1e-5), np.maximum(det.range_sigma_m[sel], 1e-5)
+            R_SC, r_CS_S = ml_pose_refinement(R_SC, r_CS_S, model[lab], uv, rho, camera, s_px, s_rho)
     return TofPoseResult(True, "", R_SC, r_CS_S, pitch_yaw_roll_from_matrix(R_SC), labels,
                          int(sel.size), float(fit.rms_residual_m), det)

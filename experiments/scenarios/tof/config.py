@@ -109,7 +109,10 @@ class PipelineConfig(ConfigTable):
     gate_factor: FiniteFloat = Field(2.0, gt=0.0, le=20.0, description="verification gate in units of alpha")
     range_estimators: list[Estimator] = ["plane", "mean"]
     weighting: Literal["inverse_variance", "uniform"] = "inverse_variance"
-    pose_estimator: Literal["svd", "ml"] = Field("svd", description="weighted SVD (000 eqs 27-38) or its ML refinement")
+    pose_estimator: Literal["ml", "svd"] = Field("ml", description="ML refinement of the weighted SVD on the key points' "
+                                                                  "pixels and ranges, or the weighted SVD (000 eqs 27-38) alone")
+    centre_estimator: Literal["fit", "centroid"] = Field("fit", description="dot centre: fit of the dot's image model or "
+                                                                           "the contrast-weighted centroid (000 eqs 9-11)")
 
     @field_validator("range_estimators")
     @classmethod

@@ -71,7 +71,8 @@ def envelope_cell(cfg: Config, seeds: list[np.random.SeedSequence]) -> dict[str,
         rng = np.random.default_rng(s)
         phi = rng.uniform(0.0, 2.0 * np.pi)
         R_true = _rot(np.array([np.cos(phi), np.sin(phi), 0.0]), tilt) @ _R_from_pyr_deg(cfg.target.attitude_deg)
-        mn = sr4000_marker_noise(camera, plate, R_true, r_true, ambient_dn=cfg.camera.ambient_dn)
+        mn = sr4000_marker_noise(camera, plate, R_true, r_true, ambient_dn=cfg.camera.ambient_dn,
+                                  centre_estimator=cfg.pipeline.centre_estimator)
         b = tof_pose_bound(R_true, r_true, plate.markers_C, camera, mn.sigma_px, mn.sigma_range_m)
         out["bound_attitude_deg"][t] = b.attitude_sigma_deg
         out["bound_position_mm"][t] = b.position_sigma_m * 1e3
@@ -79,7 +80,8 @@ def envelope_cell(cfg: Config, seeds: list[np.random.SeedSequence]) -> dict[str,
                                  ambient_dn=cfg.camera.ambient_dn)
         res = estimate_tof_pose(frame, camera, plate, matcher=cfg.pipeline.matcher,
                                 match_settings=MatchSettings(alpha_m=cfg.pipeline.alpha_m),
-                                extraction=ExtractionSettings(range_estimator=cfg.pipeline.range_estimators[0]),
+                                extraction=ExtractionSettings(range_estimator=cfg.pipeline.range_estimators[0],
+                                                              centre_estimator=cfg.pipeline.centre_estimator),
                                 gate_factor=cfg.pipeline.gate_factor, weighting=cfg.pipeline.weighting,
                                 pose_estimator=cfg.pipeline.pose_estimator)
         out["n_detected"][t] = res.detections.n
@@ -171,7 +173,7 @@ def envelope_figures(ds: xr.Dataset, fig_dir: Path, *, format: str = "png") -> l
              title="RMS position error", cbar_label="position error [mm]", annotate=True, fmt="{:.2f}")
     plot_map(m(100 * st["found"]), xs, ys, ax=axes[1, 0], vmin=0.0, vmax=100.0, cmap="cividis", xlabel=xl,
              ylabel=yl, title="frames found", cbar_label="found [%]", annotate=True, fmt="{:.0f}")
-    plot_map(m(st["ratio"]), xs, ys, ax=axes[1, 1], vmin=1.0, vmax=10.0, cmap="viridis", xlabel=xl, ylabel=yl,
+    plot_map(m(st["ratio"]), xs, ys, ax=axes[1, 1], vmin=0.0, vmax=5.0, cmap="viridis", xlabel=xl, ylabel=yl,
              title="RMS attitude error / Cramer-Rao bound", cbar_label="error / bound [1]", annotate=True,
              fmt="{:.1f}")
     ticks(axes)

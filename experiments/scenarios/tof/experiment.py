@@ -107,7 +107,7 @@ def run(cfg: Config, *, progress: Callable[[int, int], None] | None = None) -> S
 
     def pose(frame, est):
         return estimate_tof_pose(frame, camera, plate, matcher=cfg.pipeline.matcher, match_settings=st,
-                                 extraction=ExtractionSettings(range_estimator=est),
+                                 extraction=ExtractionSettings(range_estimator=est, centre_estimator=cfg.pipeline.centre_estimator),
                                  gate_factor=cfg.pipeline.gate_factor, weighting=cfg.pipeline.weighting,
                                  pose_estimator=cfg.pipeline.pose_estimator)
 
