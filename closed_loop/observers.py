@@ -70,12 +70,16 @@ class RenderedObserver(Observer):
         Feature localisation noise σ given to the tracks, px.
     detector : str
         ``"sift"``, ``"orb"``, ``"akaze"`` or ``"surf"``.
+    noise_model : str
+        ``"fixed"``: every keypoint gets ``pixel_sigma_px``; ``"calibrated"``: each keypoint the σ
+        measured for its SIFT size (:mod:`vision.calibration`).
     """
 
     camera: PinholeCamera
     target: Target
     pixel_sigma_px: float = 0.5
     detector: str = "sift"
+    noise_model: str = "fixed"
 
     def observe(self, T_CW: np.ndarray, q_HT: np.ndarray, sun_H: np.ndarray, *, rng: np.random.Generator,
                 sun_visible_fraction: float = 1.0) -> Observation:
@@ -83,7 +87,8 @@ class RenderedObserver(Observer):
         from vision.rendered import observe
 
         return observe(self.camera, T_CW, self.target, q_HT, _unit(sun_H), rng=rng, detector=self.detector,
-                       pixel_sigma_px=self.pixel_sigma_px, sun_visible_fraction=sun_visible_fraction)
+                       pixel_sigma_px=self.pixel_sigma_px, sun_visible_fraction=sun_visible_fraction,
+                       noise_model=self.noise_model)
 
 
 @functools.lru_cache(maxsize=4)
@@ -106,7 +111,12 @@ class GeometricObserver(Observer):
     false_match_fraction : float
         Fraction of tracks that are false matches.
     n_features : int
-        Surface features sampled on the target (sampled once per target and count, then reused).
+        Surface features sampled on the target (sampled once per target and count, then reused);
+        the calibrated model raises it to what the measured detection density needs.
+    noise_model : str
+        ``"fixed"``: ``pixel_sigma_px`` and ``false_match_fraction``; ``"calibrated"``: detection,
+        σ per keypoint size, match and association survival and false rates as measured on rendered
+        images (:mod:`vision.geometric_calibrated`).
     """
 
     camera: PinholeCamera
@@ -114,6 +124,7 @@ class GeometricObserver(Observer):
     pixel_sigma_px: float = 0.5
     false_match_fraction: float = 0.02
     n_features: int = 2000
+    noise_model: str = "fixed"
 
     def observe(self, T_CW: np.ndarray, q_HT: np.ndarray, sun_H: np.ndarray, *, rng: np.random.Generator,
                 sun_visible_fraction: float = 1.0) -> Observation:
@@ -145,10 +156,15 @@ class GeometricObserver(Observer):
         """
         from vision.geometric import observe_epochs
 
+        n = int(self.n_features)
+        if self.noise_model == "calibrated":
+            from vision.geometric_calibrated import calibrated_feature_count
+
+            n = max(n, calibrated_feature_count(self.camera, self.target, np.asarray(T_CW)))
         return observe_epochs(self.camera, T_CW, self.target, q_HT, sun_H, rng=rng,
-                              features=_surface_features(self.target, int(self.n_features)),
+                              features=_surface_features(self.target, n),
                               pixel_sigma_px=self.pixel_sigma_px, false_match_fraction=self.false_match_fraction,
-                              sun_visible_fraction=sun_visible_fraction)
+                              sun_visible_fraction=sun_visible_fraction, noise_model=self.noise_model)
 
 
 #: observation mode (config ``observation.mode``) → observer class

@@ -350,15 +350,21 @@ def triangulate_from_observation(obs: Observation, *, pixel_sigma_px: float | No
                                  **options: Any) -> Triangulation:
     """:func:`triangulate` on a :class:`vision.observation.Observation`.
 
-    Uses ``obs.uv_px``, ``obs.K``, ``obs.T_CW`` and ``obs.pixel_sigma_px`` (override it with
-    ``pixel_sigma_px``, e.g. for a noise-free observation whose σ is 0); ``options`` are passed
-    on.  An observation that is not ``ok`` gives a failed cloud whose ``failure_reason``
+    Uses ``obs.uv_px``, ``obs.K``, ``obs.T_CW`` and the observation's σ per track and view
+    (``obs.sigma_uv_px``: its ``track_sigma_px`` where known, else ``obs.pixel_sigma_px``); pass
+    ``pixel_sigma_px`` to override it (e.g. for a noise-free observation whose σ is 0).  ``options``
+    are passed on.  An observation that is not ``ok`` gives a failed cloud whose ``failure_reason``
     names the observation's ``failure_reason``.
     """
-    sigma = obs.pixel_sigma_px if pixel_sigma_px is None else pixel_sigma_px
-    if not sigma > 0:
-        raise ValueError(f"pixel_sigma_px: the observation's σ is {sigma!r}; pass the σ to assume "
-                         "(> 0) for a noise-free observation")
+    if pixel_sigma_px is None:
+        if not obs.pixel_sigma_px > 0 and obs.track_sigma_px is None:
+            raise ValueError(f"pixel_sigma_px: the observation's σ is {obs.pixel_sigma_px!r}; pass the σ to "
+                             "assume (> 0) for a noise-free observation")
+        sigma = obs.sigma_uv_px if obs.track_sigma_px is not None else obs.pixel_sigma_px
+    else:
+        sigma = pixel_sigma_px
+        if not np.all(np.asarray(sigma) > 0):
+            raise ValueError(f"pixel_sigma_px: must be > 0, got {sigma!r}")
     tri = triangulate(obs.uv_px, obs.K, obs.T_CW, pixel_sigma_px=sigma, **options)
     if not obs.ok:
         return Triangulation(

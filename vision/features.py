@@ -439,7 +439,8 @@ def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence
     Returns
     -------
     Observation
-        Tracks with the descriptor of each track's first view; ``feature_id = -1`` and
+        Tracks with the descriptor of each track's first view and the keypoint diameters
+        (``keypoint_size_px``); ``feature_id = -1`` and
         ``X_T_true = NaN`` (no ground truth here: see :func:`vision.rendered.label_tracks`).
         ``failure_reason`` is ``"too few matches"`` when no track survives.
     """
@@ -466,9 +467,11 @@ def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence
     tracks = tracks_from_matches([len(k) for k in kps], pm, min_views=min_views)
     M = len(tracks)
     uv = np.full((M, n, 2), np.nan)
+    size = np.full((M, n), np.nan)
     for i in range(n):
         sel = tracks[:, i] >= 0
         uv[sel, i] = kps[i].uv_px[tracks[sel, i]]
+        size[sel, i] = kps[i].size_px[tracks[sel, i]]
     # every pair of views in a track must satisfy the epipolar constraint (chains skip some pairs)
     good = np.ones(M, dtype=bool)
     for (i, j), F in Fs.items():
@@ -476,7 +479,7 @@ def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence
         if both.any():
             e = epipolar_distance_px(F, uv[both, i], uv[both, j])
             good[np.nonzero(both)[0][e > epipolar_tol_px]] = False
-    tracks, uv = tracks[good], uv[good]
+    tracks, uv, size = tracks[good], uv[good], size[good]
     M = len(tracks)
     dim = kps[0].descriptors.shape[1]
     desc = np.zeros((M, dim), dtype=np.float32)
@@ -487,4 +490,5 @@ def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence
     return Observation(uv_px=uv, descriptors=desc, K=K, T_CW=T, image_size=cams[0].image_size,
                        pixel_sigma_px=pixel_sigma_px, feature_id=np.full(M, -1, dtype=np.int64),
                        X_T_true=np.full((M, 3), np.nan),
-                       failure_reason="" if M > 0 else REASON_TOO_FEW_MATCHES)
+                       failure_reason="" if M > 0 else REASON_TOO_FEW_MATCHES,
+                       keypoint_size_px=np.where(np.isfinite(size), np.maximum(size, 1e-6), np.nan))

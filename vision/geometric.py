@@ -45,6 +45,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from attitude.quaternion import check_quat, matrix_from_quat
+from vision.calibration import SiftCalibration
 from vision.camera import PinholeCamera, cameras_per_view, check_pose
 from vision.observation import (
     REASON_EARTH_SHADOW,
@@ -139,7 +140,8 @@ def observe(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, ta
             false_match_fraction: float = 0.02, sun_visible_fraction: float = 1.0,
             min_views: int = 2, min_feature_px: float = 3.0, max_view_angle_deg: float = 75.0,
             max_sun_incidence_deg: float = 88.0, descriptor_noise: float = 0.2,
-            margin_px: float = 0.0) -> Observation:
+            margin_px: float = 0.0, noise_model: str = "fixed",
+            calibration: SiftCalibration | None = None) -> Observation:
     """Geometric-mode observation of one epoch by n cameras (see module docstring for the model).
 
     Parameters
@@ -174,6 +176,9 @@ def observe(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, ta
         Norm of the Gaussian noise added to the unit descriptor of each observation.
     margin_px : float
         Features closer than this to the image border are not seen.
+    noise_model, calibration :
+        ``"fixed"`` (the options above) or ``"calibrated"`` (the rendered-mode statistics,
+        :func:`observe_epochs`).
 
     Returns
     -------
@@ -194,7 +199,8 @@ def observe(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, ta
                           min_views=min_views, min_feature_px=min_feature_px,
                           max_view_angle_deg=max_view_angle_deg,
                           max_sun_incidence_deg=max_sun_incidence_deg,
-                          descriptor_noise=descriptor_noise, margin_px=margin_px)[0]
+                          descriptor_noise=descriptor_noise, margin_px=margin_px,
+                          noise_model=noise_model, calibration=calibration)[0]
 
 
 def observe_epochs(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, target: Target,
@@ -203,13 +209,21 @@ def observe_epochs(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayL
                    false_match_fraction: float = 0.02, sun_visible_fraction: ArrayLike = 1.0,
                    min_views: int = 2, min_feature_px: float = 3.0, max_view_angle_deg: float = 75.0,
                    max_sun_incidence_deg: float = 88.0, descriptor_noise: float = 0.2,
-                   margin_px: float = 0.0, batch_size: int = 128) -> list[Observation]:
+                   margin_px: float = 0.0, batch_size: int = 128, noise_model: str = "fixed",
+                   calibration: SiftCalibration | None = None) -> list[Observation]:
     """Geometric-mode observations of E epochs in one vectorised pass.
 
     Same model and options as :func:`observe`, with ``T_CW`` of shape ``(E, n, 4, 4)``, ``q_HT``
     ``(E, 4)``, ``sun_H`` ``(E, 3)`` and ``sun_visible_fraction`` a scalar or ``(E,)``. Epochs are
     processed ``batch_size`` at a time. The random draws of one call depend on the whole batch, so
     give each epoch its own call (or its own ``rng``) when epochs must be independent streams.
+
+    ``noise_model="calibrated"`` replaces the fixed σ, the ``min_feature_px`` limit and the
+    ``false_match_fraction`` by the statistics measured on rendered images (``calibration``,
+    default the shipped one of the target; :mod:`vision.geometric_calibrated`): detection
+    probability, σ per keypoint size, correlated cross-view match survival, false matches, and
+    descriptors that survive the epochs' viewpoint change as measured (the epochs of one call are
+    taken as consecutive epochs of one trial), with false associations.
 
     Returns
     -------
@@ -245,6 +259,15 @@ def observe_epochs(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayL
         raise ValueError(f"descriptor_noise must be >= 0, got {descriptor_noise!r}")
     feats = _default_features(target) if features is None else features
     rng = np.random.default_rng(rng)
+    if noise_model == "calibrated":
+        from vision.geometric_calibrated import observe_epochs_calibrated
+
+        return observe_epochs_calibrated(
+            cams, T, target, q, sun, fsun, feats, rng, calibration=calibration, min_views=int(min_views),
+            cos_view=np.cos(np.deg2rad(max_view_angle_deg)), cos_sun=np.cos(np.deg2rad(max_sun_incidence_deg)),
+            descriptor_noise=float(descriptor_noise), margin_px=float(margin_px), batch_size=int(batch_size))
+    if noise_model != "fixed":
+        raise ValueError(f"noise_model must be 'fixed' or 'calibrated', got {noise_model!r}")
     out: list[Observation] = []
     for b0 in range(0, E, int(batch_size)):
         sl = slice(b0, min(E, b0 + int(batch_size)))
@@ -259,11 +282,23 @@ def observe_epochs(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayL
     return out
 
 
-def _observe_batch(cams, T, target, q, sun, fsun, feats, rng, *, pixel_sigma_px, false_match_fraction,
-                   min_views, min_feature_px, cos_view, cos_sun, descriptor_noise, margin_px):
-    import open3d as o3d
+@dataclass(eq=False)
+class _Geometry:
+    """Per-(epoch, camera, feature) geometry of a batch (arrays ``(E, n, N)`` unless noted)."""
 
-    E, n = T.shape[:2]
+    K: np.ndarray          # (n, 3, 3)
+    uv: np.ndarray         # (E, n, N, 2)
+    z: np.ndarray          # camera z-depth, m
+    vis: np.ndarray        # bool: in the image, facing, lit side, (after _occlude) unoccluded and unshadowed
+    in_fov: np.ndarray     # (E, n) the target is in the view at all
+    cos_view: np.ndarray   # signed cosine of the view angle (normal · direction to the camera)
+    cos_sun: np.ndarray    # (E, 1, N) normal · direction to the Sun
+    c_T: np.ndarray        # (E, n, 3) camera centres, body frame, m
+    R_CT: np.ndarray       # (E, n, 3, 3)
+
+
+def _geometry(cams, T, q, sun, fsun, feats, *, min_feature_px, cos_view, cos_sun, margin_px) -> _Geometry:
+    """Projection and the cheap visibility tests (no ray casting) of a batch."""
     K = np.stack([c.K for c in cams])                                   # (n, 3, 3)
     fx = K[:, 0, 0][None, :, None]
     fy = K[:, 1, 1][None, :, None]
@@ -296,7 +331,16 @@ def _observe_batch(cams, T, target, q, sun, fsun, feats, rng, *, pixel_sigma_px,
     nsun = (s_T @ feats.normal_T.T)[:, None, :]                         # (E, 1, N)
     side = np.where(ncam >= 0, 1.0, -1.0)
     vis &= (np.abs(ncam) >= cos_view) & (side * nsun >= cos_sun) & (fsun[:, None, None] > 0)
-    # occlusion towards the cameras and shadowing towards the Sun, by ray casting
+    return _Geometry(K=K, uv=np.stack([u, v], axis=-1), z=z, vis=vis, in_fov=in_fov, cos_view=ncam,
+                     cos_sun=nsun, c_T=c_T, R_CT=R_CT)
+
+
+def _occlude(g: _Geometry, target: Target, feats: SurfaceFeatures, sun_T: np.ndarray) -> None:
+    """Occlusion towards the cameras and shadowing towards the Sun by ray casting (``g.vis`` in place)."""
+    import open3d as o3d
+
+    vis = g.vis
+    side = np.where(g.cos_view >= 0, 1.0, -1.0)
     scene = target.scene
     eps = max(1e-3, 1e-4 * target.radius_m)
     e_i, n_i, f_i = np.nonzero(vis)
@@ -304,21 +348,34 @@ def _observe_batch(cams, T, target, q, sun, fsun, feats, rng, *, pixel_sigma_px,
         org = feats.X_T[f_i] + eps * side[e_i, n_i, f_i, None] * feats.normal_T[f_i]
         rays = np.empty((len(e_i), 6), dtype=np.float32)
         rays[:, :3] = org
-        rays[:, 3:] = c_T[e_i, n_i] - org
+        rays[:, 3:] = g.c_T[e_i, n_i] - org
         occ = scene.test_occlusions(o3d.core.Tensor(rays), tnear=0.0, tfar=1.0).numpy().astype(bool)
         vis[e_i[occ], n_i[occ], f_i[occ]] = False
     # Sun shadow: once per (epoch, feature) that some camera still sees; the side facing the Sun is
     # the side facing the cameras that see it (the lit test above).
     e_s, f_s = np.nonzero(vis.any(axis=1))
     if len(e_s):
-        sgn = np.sign(nsun[e_s, 0, f_s])
+        sgn = np.sign(g.cos_sun[e_s, 0, f_s])
         org = feats.X_T[f_s] + eps * sgn[:, None] * feats.normal_T[f_s]
         rays = np.empty((len(e_s), 6), dtype=np.float32)
         rays[:, :3] = org
-        rays[:, 3:] = s_T[e_s]
+        rays[:, 3:] = sun_T[e_s]
         shadowed = scene.test_occlusions(o3d.core.Tensor(rays)).numpy().astype(bool)
         vis[e_s[shadowed], :, f_s[shadowed]] = False
-    uv = np.stack([u, v], axis=-1)                                      # (E, n, N, 2)
+
+
+def _sun_T(q: np.ndarray, sun: np.ndarray) -> np.ndarray:
+    return np.einsum("eji,ej->ei", matrix_from_quat(q), sun / np.linalg.norm(sun, axis=1, keepdims=True))
+
+
+def _observe_batch(cams, T, target, q, sun, fsun, feats, rng, *, pixel_sigma_px, false_match_fraction,
+                   min_views, min_feature_px, cos_view, cos_sun, descriptor_noise, margin_px):
+    E, n = T.shape[:2]
+    g = _geometry(cams, T, q, sun, fsun, feats, min_feature_px=min_feature_px, cos_view=cos_view,
+                  cos_sun=cos_sun, margin_px=margin_px)
+    _occlude(g, target, feats, _sun_T(q, sun))
+    K, vis, in_fov, z, uv = g.K, g.vis, g.in_fov, g.z, g.uv
+    W, H = cams[0].image_size
     out = []
     D = feats.descriptors.shape[1]
     size = (int(W), int(H))

@@ -66,6 +66,12 @@ class Observation:
     failure_reason : str
         Empty when the observation is usable, else why it has no tracks (e.g.
         ``"target in Earth shadow"``, ``"target outside field of view"``); see :attr:`ok`.
+    track_sigma_px : ndarray, shape (M, n), optional
+        Per track and view localisation σ per axis, px (NaN where the track is absent), when the
+        observation knows it (the calibrated noise model: from each keypoint's SIFT size); None:
+        every coordinate has ``pixel_sigma_px``.  :attr:`sigma_uv_px` gives the array either way.
+    keypoint_size_px : ndarray, shape (M, n), optional
+        Keypoint diameter per track and view, px (NaN where absent), when known.
     """
 
     uv_px: np.ndarray
@@ -77,6 +83,8 @@ class Observation:
     feature_id: np.ndarray
     X_T_true: np.ndarray
     failure_reason: str = ""
+    track_sigma_px: np.ndarray | None = None
+    keypoint_size_px: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         uv = np.asarray(self.uv_px, dtype=float)
@@ -107,6 +115,17 @@ class Observation:
             raise ValueError(f"pixel_sigma_px must be finite and >= 0, got {self.pixel_sigma_px!r}")
         if not isinstance(self.failure_reason, str):
             raise ValueError(f"failure_reason must be a string, got {self.failure_reason!r}")
+        for name in ("track_sigma_px", "keypoint_size_px"):
+            a = getattr(self, name)
+            if a is None:
+                continue
+            a = np.asarray(a, dtype=float)
+            if a.shape != (m, n):
+                raise ValueError(f"{name} must have shape ({m}, {n}), got {a.shape}")
+            present = np.isfinite(uv).all(axis=-1)
+            if not np.all(a[present] > 0):
+                raise ValueError(f"{name} must be finite and > 0 wherever the track is seen")
+            object.__setattr__(self, name, a)
         object.__setattr__(self, "uv_px", uv)
         object.__setattr__(self, "descriptors", desc)
         object.__setattr__(self, "K", K)
@@ -130,6 +149,15 @@ class Observation:
     def ok(self) -> bool:
         """True when the observation is usable (``failure_reason`` is empty)."""
         return not self.failure_reason
+
+    @property
+    def sigma_uv_px(self) -> np.ndarray:
+        """``(M, n)`` localisation σ per axis of every track and view, px: :attr:`track_sigma_px` where
+        given, else ``pixel_sigma_px`` (also where a track is absent)."""
+        base = np.full((self.n_tracks, self.n_views), self.pixel_sigma_px)
+        if self.track_sigma_px is None:
+            return base
+        return np.where(np.isfinite(self.track_sigma_px), self.track_sigma_px, base)
 
     @property
     def seen(self) -> np.ndarray:

@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from attitude.quaternion import matrix_from_quat
+from vision.calibration import SiftCalibration, load_calibration
 from vision.camera import PinholeCamera, cameras_per_view, check_pose
 from vision.features import detect, match_views
 from vision.observation import REASON_OUTSIDE_FOV, Observation
@@ -30,7 +31,10 @@ from vision.render import (
 from vision.sensor import SensorModel
 from vision.target import Target
 
-__all__ = ["foreground_mask", "label_tracks", "observe", "observe_renders", "render_views"]
+__all__ = ["NOISE_MODELS", "foreground_mask", "label_tracks", "observe", "observe_renders", "render_views"]
+
+#: ``noise_model`` values: the configured σ for every keypoint, or the σ measured for its SIFT size
+NOISE_MODELS = ("fixed", "calibrated")
 
 
 def render_views(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, target: Target,
@@ -118,12 +122,19 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
                     detector: str = "sift",
                     ratio: float = 0.6, epipolar_tol_px: float = 1.5, pixel_sigma_px: float = 0.5,
                     min_views: int = 2, truth_tol_px: float = 2.0, foreground_dn: float = 3.0,
-                    guided: bool = False, detector_options: dict | None = None) -> Observation:
+                    guided: bool = False, detector_options: dict | None = None,
+                    noise_model: str = "fixed", calibration: SiftCalibration | None = None) -> Observation:
     """Detect, match and label features in already rendered views of one epoch.
 
+    ``noise_model="fixed"`` gives every keypoint ``pixel_sigma_px``; ``"calibrated"`` gives each one
+    the σ measured for its SIFT size (``calibration``, default: the shipped calibration of the
+    target, :func:`vision.calibration.load_calibration`) as ``track_sigma_px``, and records their
+    root mean square as ``pixel_sigma_px``.
     Returns an empty, flagged observation (never raises) when the target is in Earth's shadow or seen
     by fewer than two views, or when no track survives matching.
     """
+    if noise_model not in NOISE_MODELS:
+        raise ValueError(f"noise_model must be one of {NOISE_MODELS}, got {noise_model!r}")
     cams = [r.camera for r in renders]
     T = np.stack([r.T_CW for r in renders])
     K = np.stack([c.K for c in cams])
@@ -147,6 +158,11 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
                       min_views=min_views, pixel_sigma_px=pixel_sigma_px, guided=guided)
     if not obs.ok:
         return obs
+    if noise_model == "calibrated":
+        cal = calibration if calibration is not None else load_calibration(target.name)
+        sig = cal.sigma_for_size(obs.keypoint_size_px)
+        rms = float(np.sqrt(np.nanmean(sig**2)))
+        obs = dataclasses.replace(obs, track_sigma_px=sig, pixel_sigma_px=rms)
     return label_tracks(obs, renders, target, q_HT, tol_px=truth_tol_px)
 
 
@@ -156,7 +172,8 @@ def observe(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, ta
             detector: str = "sift", ratio: float = 0.6, epipolar_tol_px: float = 1.5,
             pixel_sigma_px: float = 0.5, min_views: int = 2, truth_tol_px: float = 2.0,
             roi: bool = True, guided: bool = False,
-            detector_options: dict | None = None) -> Observation:
+            detector_options: dict | None = None, noise_model: str = "fixed",
+            calibration: SiftCalibration | None = None) -> Observation:
     """Rendered-mode observation of one epoch by n cameras.
 
     Parameters
@@ -186,14 +203,20 @@ def observe(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, ta
         Render only the region of interest.
     guided : bool
         Epipolar-guided ratio test (:func:`vision.features.match_pair`).
+    noise_model, calibration :
+        ``"fixed"`` (``pixel_sigma_px`` for every keypoint) or ``"calibrated"`` (σ per keypoint from
+        its SIFT size, :func:`observe_renders`).
 
     Returns
     -------
     Observation
     """
+    if noise_model not in NOISE_MODELS:
+        raise ValueError(f"noise_model must be one of {NOISE_MODELS}, got {noise_model!r}")
     renders = render_views(camera, T_CW, target, q_HT, sun_H, rng=rng, sensor=sensor,
                            sun_visible_fraction=sun_visible_fraction, roi=roi)
     return observe_renders(renders, target, q_HT, detector=detector, ratio=ratio,
                            epipolar_tol_px=epipolar_tol_px, pixel_sigma_px=pixel_sigma_px,
                            min_views=min_views, truth_tol_px=truth_tol_px, guided=guided,
-                           detector_options=detector_options)
+                           detector_options=detector_options, noise_model=noise_model,
+                           calibration=calibration)

@@ -11,6 +11,7 @@ import typer
 
 from coobs.cli import (
     bench,
+    calibrate,
     configs,
     export,
     figures,
@@ -58,6 +59,7 @@ app.command("plot")(plot.plot)
 app.command("sweep")(sweep.sweep)
 app.command("filter-study")(filter_study.filter_study)
 app.command("figures")(figures.figures)
+app.command("calibrate")(calibrate.calibrate)
 app.command("configs")(configs.configs)
 app.command("export")(export.export)
 

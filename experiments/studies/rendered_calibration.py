@@ -1,0 +1,443 @@
+"""Rendered-mode statistics measured against the renderer's per-pixel truth (``coobs calibrate``).
+
+For each target, range and random attitude (with a random Sun direction, phase angle at most
+``sun_phase_max_deg``) one reference view A is rendered and SIFT keypoints detected as the rendered
+observation mode does (:func:`vision.render.render`, :func:`vision.rendered.foreground_mask`,
+:func:`vision.features.detect`); then
+
+* **detection density**: keypoints per m² of visible surface, binned by the cosine of the view
+  angle and of the Sun incidence (shadowed surface its own bin), from the per-pixel depth, triangle
+  and ``lit`` truth (the area of a pixel is ``(z/f)² / cos(view angle)``);
+* **cross-view matching** with a second camera at ``cross_view_deg`` from A about the target (the
+  same epoch, so the same lighting): :func:`vision.features.match_pair` (ratio 0.6, epipolar gate
+  1.5 px); a match is correct when the surface points cast through both keypoints reproject within
+  ``truth_tol_px`` of each other's keypoint (the test of :func:`vision.rendered.label_tracks`).
+  *Survival* is correct matches over A's keypoints whose surface point the second camera sees
+  (in the image, unoccluded); the *false-match rate* is wrong over all matches;
+* **keypoint localisation σ per SIFT size**: for correct matches, the residual between B's keypoint
+  and the projection of the surface point under A's keypoint has variance σ²(size_A) + σ²(size_B)
+  per axis; σ² per size bin is the non-negative least-squares solution over all matches;
+* **three views**: a third camera at the first cross-view angle from both A and B; the tracks of
+  the three views (:func:`vision.features.match_views`) against the matches of A and B alone tell
+  how strongly the pair matches of one feature are correlated;
+* **inter-epoch association**: A's matched keypoints (the tracks of the 10° pair) against the
+  keypoints of A's camera after the target turned by ``epoch_change_deg`` about a random axis (the
+  Sun fixed in H, so the lighting changes as in orbit), ratio test without a geometric gate as in
+  :func:`reconstruction.association.associate`; survival is correct associations over those
+  tracks still visible, the false-association rate wrong over all.
+
+:func:`calibrate` returns the JSON-ready dict that :mod:`vision.calibration` reads; ``coobs
+calibrate`` writes it to ``vision/calibration/rendered_sift.json``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from attitude.quaternion import matrix_from_quat, quat_from_rotvec, quat_multiply, quat_normalize
+from experiments.sweep import child_seeds
+from vision.calibration import COS_VIEW_EDGES, SIZE_EDGES_PX, SUN_BIN_EDGES
+from vision.camera import PinholeCamera, look_at
+from vision.features import Keypoints, detect, fundamental_from_poses, match_pair, match_views
+from vision.render import RenderResult, cast_body_points, render
+from vision.rendered import foreground_mask
+from vision.sensor import SensorModel
+from vision.target import Target, fy1_target, load_mesh
+
+__all__ = ["CalibrationSpec", "calibrate", "load_calibration_target", "QUICK", "DEFAULT"]
+
+_QUANTILES = np.linspace(0.0, 1.0, 21)
+#: size bins with fewer keypoints in correct matches get no σ (the model takes the nearest bin's)
+_MIN_PAIRS_PER_BIN = 20
+_PHASE_EDGES_DEG = np.array([0.0, 30.0, 60.0, 90.0, 120.0, 150.0, 180.0])
+
+
+@dataclass(frozen=True)
+class CalibrationSpec:
+    """What ``coobs calibrate`` measures.
+
+    Attributes
+    ----------
+    targets : tuple of str
+        ``"fy1"`` (procedural FY-1-like) and/or bundled meshes (``"topex"``, ``"hubble"``).
+    ranges_m : tuple of float
+        Camera ranges, m.
+    attitudes : int
+        Random attitudes (each with its own Sun direction) per target and range.
+    cross_view_deg : tuple of float
+        Angles between the two cameras of the cross-view pairs, degrees (the first one also gives
+        the tracks of the association test).
+    epoch_change_deg : tuple of float
+        Rotations of the target between the two epochs of the association test, degrees.
+    seed : int
+        Root seed.
+    image_px, fov_deg : int, float
+        Square camera and its field of view.
+    sun_phase_max_deg : float
+        Largest angle between the directions to the Sun and to the reference camera.
+    ratio, epipolar_tol_px, truth_tol_px : float
+        Ratio test, epipolar gate and the truth tolerance of a correct match.
+    """
+
+    targets: tuple[str, ...] = ("fy1", "topex")
+    ranges_m: tuple[float, ...] = (40.0, 80.0)
+    attitudes: int = 24
+    cross_view_deg: tuple[float, ...] = (10.0, 20.0)
+    epoch_change_deg: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0, 30.0, 45.0, 60.0)
+    seed: int = 2016
+    image_px: int = 1024
+    fov_deg: float = 20.0
+    sun_phase_max_deg: float = 150.0
+    ratio: float = 0.6
+    epipolar_tol_px: float = 1.5
+    truth_tol_px: float = 2.0
+
+    def __post_init__(self) -> None:
+        if not self.targets:
+            raise ValueError("targets: name at least one target")
+        if not self.ranges_m or min(self.ranges_m) <= 0:
+            raise ValueError(f"ranges_m: need positive ranges, got {self.ranges_m!r}")
+        if int(self.attitudes) < 1:
+            raise ValueError(f"attitudes: must be >= 1, got {self.attitudes!r}")
+        if not self.cross_view_deg or not all(0 < a < 90 for a in self.cross_view_deg):
+            raise ValueError(f"cross_view_deg: need angles in (0, 90), got {self.cross_view_deg!r}")
+        if not self.epoch_change_deg or not all(0 < a <= 90 for a in self.epoch_change_deg):
+            raise ValueError(f"epoch_change_deg: need angles in (0, 90], got {self.epoch_change_deg!r}")
+
+
+#: the size ``coobs calibrate`` runs by default (≈ 8 min on one core of the shared 2-core machine)
+DEFAULT = CalibrationSpec()
+#: ``coobs calibrate --quick``: one attitude per target and range, two epoch changes (a test)
+QUICK = CalibrationSpec(attitudes=1, cross_view_deg=(10.0,), epoch_change_deg=(2.0, 20.0))
+
+
+def load_calibration_target(name: str) -> Target:
+    """The target a calibration names: ``"fy1"`` or a bundled mesh."""
+    return fy1_target() if name == "fy1" else load_mesh(name)
+
+
+def _render(cam: PinholeCamera, T_CW: np.ndarray, target: Target, q_HT: np.ndarray, sun_H: np.ndarray,
+            rng: np.random.Generator) -> tuple[RenderResult, Keypoints]:
+    r = render(cam, T_CW, target, q_HT, sun_H, rng=rng)
+    if not r.ok:
+        return r, detect(np.zeros((8, 8), np.uint8))
+    return r, detect(r.image, roi=r.roi, mask=foreground_mask(r.image))
+
+
+def _project(r: RenderResult, q_HT: np.ndarray, X_T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel position and z-depth of body points in a rendered view."""
+    X_C = (r.T_CW[:3, :3] @ (matrix_from_quat(q_HT) @ X_T.T)).T + r.T_CW[:3, 3]
+    return r.camera.project(X_C), X_C[:, 2]
+
+
+def _seen_in(r: RenderResult, q_HT: np.ndarray, X_T: np.ndarray) -> np.ndarray:
+    """Body points inside the image of ``r`` and not hidden (depth within 1 % of the rendered depth)."""
+    uv, z = _project(r, q_HT, X_T)
+    H, W = r.mask.shape
+    ok = np.all(np.isfinite(uv), axis=1) & (z > 0)
+    ui = np.clip(np.rint(np.nan_to_num(uv[:, 0])).astype(int), 0, W - 1)
+    vi = np.clip(np.rint(np.nan_to_num(uv[:, 1])).astype(int), 0, H - 1)
+    ok &= (uv[:, 0] >= 0) & (uv[:, 0] <= W - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= H - 1)
+    d = r.depth_z_m[vi, ui]
+    return ok & np.isfinite(d) & (np.abs(d - z) <= 0.01 * z + 0.02)
+
+
+def _body_points(r: RenderResult, target: Target, q_HT: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    X, _ = cast_body_points(r.camera, r.T_CW, target, q_HT, uv)
+    miss = ~np.isfinite(X[:, 0])
+    if miss.any():
+        X[miss] = r.body_points_at(uv[miss])
+    return X
+
+
+def _correct(rA, qA, XA, uvA, rB, qB, XB, uvB, tol_px):
+    """Both-way reprojection test of matched keypoints (as :func:`vision.rendered.label_tracks`)."""
+    e1 = np.linalg.norm(_project(rB, qB, XA)[0] - uvB, axis=1)
+    e2 = np.linalg.norm(_project(rA, qA, XB)[0] - uvA, axis=1)
+    with np.errstate(invalid="ignore"):
+        return (e1 <= tol_px) & (e2 <= tol_px)
+
+
+def _surface_geometry(r: RenderResult, target: Target, q_HT: np.ndarray, sun_H: np.ndarray):
+    """Per target pixel: view-angle cosine, Sun bin, pixel area (m²); and the pixel indices."""
+    R_HT = matrix_from_quat(q_HT)
+    v, u = np.nonzero(r.mask)
+    n_T = target.triangle_normals_T[r.triangle_id[v, u]]
+    X_T = r.X_T[v, u].astype(float)
+    c_T = -(R_HT.T @ r.T_CW[:3, :3].T @ r.T_CW[:3, 3])
+    to_cam = c_T - X_T
+    to_cam /= np.linalg.norm(to_cam, axis=1, keepdims=True)
+    cos_v = np.sum(n_T * to_cam, axis=1)
+    side = np.where(cos_v >= 0, 1.0, -1.0)
+    cos_v = np.abs(cos_v)
+    s_T = R_HT.T @ (sun_H / np.linalg.norm(sun_H))
+    cos_s = side * (n_T @ s_T)
+    sun_bin = np.where(r.lit[v, u], np.clip(np.searchsorted(SUN_BIN_EDGES, cos_s, side="right") - 1,
+                                            1, len(SUN_BIN_EDGES) - 2), 0)
+    view_bin = np.clip(np.searchsorted(COS_VIEW_EDGES, cos_v, side="right") - 1, 0, len(COS_VIEW_EDGES) - 2)
+    f = np.sqrt(r.camera.K[0, 0] * r.camera.K[1, 1])
+    area = (r.depth_z_m[v, u].astype(float) / f) ** 2 / np.maximum(cos_v, 0.05)
+    return v, u, view_bin, sun_bin, area
+
+
+def _size_bin(size_px: np.ndarray) -> np.ndarray:
+    return np.clip(np.searchsorted(SIZE_EDGES_PX, size_px, side="right") - 1, 0, len(SIZE_EDGES_PX) - 2)
+
+
+class _Tally:
+    """Counts of one (target, range) accumulated over the attitudes."""
+
+    def __init__(self, spec: CalibrationSpec):
+        nv, ns, nz = len(COS_VIEW_EDGES) - 1, len(SUN_BIN_EDGES) - 1, len(SIZE_EDGES_PX) - 1
+        self.kp = np.zeros((nv, ns))
+        self.area = np.zeros((nv, ns))
+        self.phase_kp = np.zeros(len(_PHASE_EDGES_DEG) - 1)
+        self.phase_area = np.zeros(len(_PHASE_EDGES_DEG) - 1)
+        a, d = len(spec.cross_view_deg), len(spec.epoch_change_deg)
+        self.cv = {k: np.zeros(a) for k in ("matchable", "matches", "correct")}
+        self.ep = {k: np.zeros(d) for k in ("tracks_visible", "redetected", "associations", "correct")}
+        self.pair_bins: list[np.ndarray] = []   # (k, 2) size bins of A and B
+        self.pair_e2: list[np.ndarray] = []     # (k,) mean squared residual per axis, px²
+        self.track_sizes: list[np.ndarray] = []
+        self.nz = nz
+        self.tracks2 = 0
+        self.tracks3 = 0
+        self.samples = 0
+
+
+def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: float,
+            ss: np.random.SeedSequence, t: _Tally) -> None:
+    s_geo, s_img = child_seeds(ss, 2)
+    g = np.random.default_rng(s_geo)
+    img_rngs = np.random.default_rng(s_img).spawn(2 + len(spec.cross_view_deg) + len(spec.epoch_change_deg))
+    q = quat_normalize(g.normal(size=4))
+    eA = g.normal(size=3)
+    eA /= np.linalg.norm(eA)
+    while True:  # Sun within the phase limit of camera A
+        sun = g.normal(size=3)
+        sun /= np.linalg.norm(sun)
+        if np.degrees(np.arccos(np.clip(sun @ eA, -1, 1))) <= spec.sun_phase_max_deg:
+            break
+    phase = np.degrees(np.arccos(np.clip(sun @ eA, -1, 1)))
+    up = np.cross(eA, g.normal(size=3))
+    up /= np.linalg.norm(up)
+    T_A = look_at(range_m * eA, np.zeros(3), up)
+    rA, kA = _render(cam, T_A, target, q, sun, img_rngs[0])
+    t.samples += 1
+    if not rA.ok:
+        return
+    v, u, vb, sb, area = _surface_geometry(rA, target, q, sun)
+    np.add.at(t.area, (vb, sb), area)
+    pb = min(int(np.searchsorted(_PHASE_EDGES_DEG, phase, side="right")) - 1, len(t.phase_kp) - 1)
+    t.phase_area[pb] += area.sum()
+    pix = np.full(rA.mask.shape, -1, dtype=np.int64)
+    pix[v, u] = np.arange(len(v))
+    ki = np.clip(np.rint(kA.uv_px).astype(int), 0, np.array(rA.mask.shape[::-1]) - 1)
+    on = pix[ki[:, 1], ki[:, 0]]
+    hit = on >= 0
+    np.add.at(t.kp, (vb[on[hit]], sb[on[hit]]), 1.0)
+    t.phase_kp[pb] += hit.sum()
+    if len(kA) < 2:
+        return
+    XA = _body_points(rA, target, q, kA.uv_px)
+    fin = np.all(np.isfinite(XA), axis=1)
+    tracks = np.zeros(0, dtype=np.int64)
+    # cross-view pairs: the second camera turned about the target by the angle, about a random axis ⟂ eA
+    axis = np.cross(eA, g.normal(size=3))
+    axis /= np.linalg.norm(axis)
+    for a, ang in enumerate(spec.cross_view_deg):
+        R = matrix_from_quat(quat_from_rotvec(np.radians(ang) * axis))
+        T_B = look_at(range_m * (R @ eA), np.zeros(3), R @ up)
+        rB, kB = _render(cam, T_B, target, q, sun, img_rngs[1 + a])
+        if not rB.ok or len(kB) < 2:
+            continue
+        seenB = np.zeros(len(kA), bool)
+        seenB[fin] = _seen_in(rB, q, XA[fin])
+        t.cv["matchable"][a] += seenB.sum()
+        F = fundamental_from_poses(cam.K, T_A, cam.K, T_B)
+        m = match_pair(kA, kB, ratio=spec.ratio, F_AB=F, epipolar_tol_px=spec.epipolar_tol_px)
+        if len(m) == 0:
+            continue
+        XB = _body_points(rB, target, q, kB.uv_px[m[:, 1]])
+        ok = _correct(rA, q, XA[m[:, 0]], kA.uv_px[m[:, 0]], rB, q, XB, kB.uv_px[m[:, 1]], spec.truth_tol_px)
+        t.cv["matches"][a] += len(m)
+        t.cv["correct"][a] += ok.sum()
+        mc = m[ok]
+        res = kB.uv_px[mc[:, 1]] - _project(rB, q, XA[mc[:, 0]])[0]
+        t.pair_e2.append(np.mean(res**2, axis=1))
+        t.pair_bins.append(np.stack([_size_bin(kA.size_px[mc[:, 0]]), _size_bin(kB.size_px[mc[:, 1]])], axis=1))
+        if a == 0:
+            tracks = mc[:, 0]
+            t.track_sizes.append(kA.size_px[tracks])
+            # a third camera at the same angle from A and B: 3-view tracks against 2-view ones
+            R60 = matrix_from_quat(quat_from_rotvec(np.radians(60.0) * eA))
+            Rc = matrix_from_quat(quat_from_rotvec(np.radians(ang) * (R60 @ axis)))
+            T_C = look_at(range_m * (Rc @ eA), np.zeros(3), Rc @ up)
+            rC, kC = _render(cam, T_C, target, q, sun, img_rngs[-1])
+            if rC.ok and len(kC) >= 2:
+                obs3 = match_views([kA, kB, kC], cam, np.stack([T_A, T_B, T_C]), ratio=spec.ratio,
+                                   epipolar_tol_px=spec.epipolar_tol_px)
+                t.tracks2 += len(m)
+                t.tracks3 += obs3.n_tracks
+    if len(tracks) == 0:
+        return
+    kT = kA.subset(tracks)
+    XT = XA[tracks]
+    ax2 = g.normal(size=3)
+    ax2 /= np.linalg.norm(ax2)
+    for d, ang in enumerate(spec.epoch_change_deg):
+        q2 = quat_normalize(quat_multiply(quat_from_rotvec(np.radians(ang) * ax2), q))
+        r2, k2 = _render(cam, T_A, target, q2, sun, img_rngs[1 + len(spec.cross_view_deg) + d])
+        if not r2.ok or len(k2) < 2:
+            continue
+        vis = _seen_in(r2, q2, XT)
+        t.ep["tracks_visible"][d] += vis.sum()
+        uv2 = _project(r2, q2, XT)[0]
+        if vis.any():
+            dist = np.linalg.norm(uv2[vis][:, None, :] - k2.uv_px[None, :, :], axis=2)
+            t.ep["redetected"][d] += np.sum(dist.min(axis=1) <= spec.truth_tol_px)
+        m = match_pair(kT, k2, ratio=spec.ratio)
+        if len(m) == 0:
+            continue
+        X2 = _body_points(r2, target, q2, k2.uv_px[m[:, 1]])
+        ok = _correct(rA, q, XT[m[:, 0]], kT.uv_px[m[:, 0]], r2, q2, X2, k2.uv_px[m[:, 1]], spec.truth_tol_px)
+        t.ep["associations"][d] += len(m)
+        t.ep["correct"][d] += ok.sum()
+
+
+def _sigma_per_bin(bins: np.ndarray, e2: np.ndarray, nz: int) -> tuple[np.ndarray, np.ndarray]:
+    """σ per size bin from residual pairs, ``e2_k = σ²[b_A] + σ²[b_B]`` (non-negative least squares)."""
+    from scipy.optimize import nnls
+
+    counts = np.bincount(bins.ravel(), minlength=nz).astype(float)
+    used = np.nonzero(counts > 0)[0]
+    if len(e2) == 0:
+        return np.full(nz, np.nan), counts
+    A = np.zeros((len(e2), len(used)))
+    col = {b: i for i, b in enumerate(used)}
+    for k in range(2):
+        np.add.at(A, (np.arange(len(e2)), [col[b] for b in bins[:, k]]), 1.0)
+    s2, _ = nnls(A, e2)
+    sigma = np.full(nz, np.nan)
+    sigma[used] = np.sqrt(s2)
+    if np.any(counts >= _MIN_PAIRS_PER_BIN):  # a small run (--quick) keeps what it has
+        sigma[counts < _MIN_PAIRS_PER_BIN] = np.nan
+    return sigma, counts
+
+
+def _coobs_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("coobs")
+    except PackageNotFoundError:
+        return "0+unknown"
+
+
+def _ratio(num: np.ndarray, den: np.ndarray) -> list:
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return [None if not d > 0 else float(n / d) for n, d in zip(np.ravel(num), np.ravel(den), strict=True)]
+
+
+def calibrate(spec: CalibrationSpec = DEFAULT, *, command: str = "",
+              progress: Callable[[int, int], None] | None = None) -> dict:
+    """Measure the rendered mode's statistics (module docstring); a JSON-ready dict with its provenance."""
+    t0 = time.perf_counter()
+    cam = PinholeCamera.from_fov(spec.image_px, spec.image_px, fov_x_deg=spec.fov_deg)
+    f_px = float(np.sqrt(cam.K[0, 0] * cam.K[1, 1]))
+    total = len(spec.targets) * len(spec.ranges_m) * int(spec.attitudes)
+    done = 0
+    out_targets = {}
+    root = np.random.SeedSequence(int(spec.seed))
+    for ti, (name, ss_t) in enumerate(zip(spec.targets, root.spawn(len(spec.targets)), strict=True)):
+        target = load_calibration_target(name)
+        per_range = []
+        for ss_r, range_m in zip(ss_t.spawn(len(spec.ranges_m)), spec.ranges_m, strict=True):
+            t = _Tally(spec)
+            for ss in ss_r.spawn(int(spec.attitudes)):
+                _sample(spec, target, cam, float(range_m), ss, t)
+                done += 1
+                if progress:
+                    progress(done, total)
+            per_range.append(t)
+        out_targets[name] = _target_summary(spec, target, per_range, f_px)
+        del ti
+    return {
+        "format": "coobs rendered SIFT calibration",
+        "format_version": 1,
+        "size_edges_px": list(SIZE_EDGES_PX[:-1]) + ["inf"],
+        "cos_view_edges": list(COS_VIEW_EDGES),
+        "sun_bin_edges": list(SUN_BIN_EDGES),
+        "sun_bins": "bin 0: surface not lit (shadowed or facing away); bins 1..: cosine of the Sun incidence",
+        "phase_edges_deg": list(_PHASE_EDGES_DEG),
+        "provenance": {
+            "command": command,
+            "coobs_version": _coobs_version(),
+            "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "wall_s": round(time.perf_counter() - t0, 1),
+            "spec": {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(spec).items()},
+            "renderer": {"function": "vision.render.render", "image_px": spec.image_px, "fov_deg": spec.fov_deg,
+                         "ambient": 0.0, "specular": True, "shadows": True, "roi": True,
+                         "sensor": dataclasses.asdict(SensorModel())},
+            "detector": {"name": "sift", "opencv_options": {"enable_precise_upscale": True},
+                         "mask": "vision.rendered.foreground_mask (> 3 DN, closed)"},
+            "matching": {"function": "vision.features.match_pair", "ratio": spec.ratio,
+                         "epipolar_tol_px": spec.epipolar_tol_px, "truth_tol_px": spec.truth_tol_px},
+        },
+        "targets": out_targets,
+    }
+
+
+def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_Tally], f_px: float) -> dict:
+    nz = per_range[0].nz
+    sig_by_range, cnt_by_range, quant = [], [], []
+    all_bins, all_e2 = [], []
+    for t in per_range:
+        b = np.concatenate(t.pair_bins) if t.pair_bins else np.zeros((0, 2), int)
+        e2 = np.concatenate(t.pair_e2) if t.pair_e2 else np.zeros(0)
+        all_bins.append(b)
+        all_e2.append(e2)
+        s, c = _sigma_per_bin(b, e2, nz)
+        sig_by_range.append([None if not np.isfinite(x) else round(float(x), 4) for x in s])
+        cnt_by_range.append(c.astype(int).tolist())
+        sizes = np.concatenate(t.track_sizes) if t.track_sizes else np.zeros(0)
+        quant.append([round(float(x), 3) for x in np.quantile(sizes, _QUANTILES)] if sizes.size else None)
+    s_all, c_all = _sigma_per_bin(np.concatenate(all_bins), np.concatenate(all_e2), nz)
+    e2_all = np.concatenate(all_e2)
+    return {
+        "name": target.name,
+        "area_m2": round(float(target.triangle_areas_m2.sum()), 3),
+        "samples_per_range": [t.samples for t in per_range],
+        "ranges_m": list(spec.ranges_m),
+        "footprint_m_per_px": [float(r) / f_px for r in spec.ranges_m],
+        "sigma_px": [None if not np.isfinite(x) else round(float(x), 4) for x in s_all],
+        "sigma_pairs_per_bin": c_all.astype(int).tolist(),
+        "sigma_px_by_range": sig_by_range,
+        "pair_residual_rms_px_per_axis": round(float(np.sqrt(np.mean(e2_all))), 4) if e2_all.size else None,
+        "size_quantiles": list(_QUANTILES.round(3)),
+        "track_size_px_quantiles_by_range": quant,
+        "keypoints": [t.kp.astype(int).tolist() for t in per_range],
+        "visible_area_m2": [t.area.round(4).tolist() for t in per_range],
+        "phase_keypoints": [t.phase_kp.astype(int).tolist() for t in per_range],
+        "phase_area_m2": [t.phase_area.round(3).tolist() for t in per_range],
+        "cross_view": {
+            "angle_deg": list(spec.cross_view_deg),
+            **{k: [t.cv[k].astype(int).tolist() for t in per_range] for k in ("matchable", "matches", "correct")},
+            "survival": [_ratio(t.cv["correct"], t.cv["matchable"]) for t in per_range],
+            "false_match_rate": [_ratio(t.cv["matches"] - t.cv["correct"], t.cv["matches"]) for t in per_range],
+            "two_view_tracks": [t.tracks2 for t in per_range],
+            "three_view_tracks": [t.tracks3 for t in per_range],
+        },
+        "association": {
+            "change_deg": list(spec.epoch_change_deg),
+            **{k: [t.ep[k].astype(int).tolist() for t in per_range]
+               for k in ("tracks_visible", "redetected", "associations", "correct")},
+            "survival": [_ratio(t.ep["correct"], t.ep["tracks_visible"]) for t in per_range],
+            "false_rate": [_ratio(t.ep["associations"] - t.ep["correct"], t.ep["associations"]) for t in per_range],
+        },
+    }

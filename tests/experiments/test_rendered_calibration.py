@@ -1,0 +1,44 @@
+"""coobs calibrate: the measurement study against the renderer's truth, and its sigma estimator."""
+
+import json
+
+import numpy as np
+from typer.testing import CliRunner
+
+from coobs.cli import app
+from experiments.studies.rendered_calibration import _sigma_per_bin
+from vision.calibration import SiftCalibration
+
+runner = CliRunner()
+
+
+def test_sigma_per_bin_recovers_known_per_bin_sigmas_from_pair_residuals():
+    """Pairs of keypoints of two size bins: e² per axis = σ²(a) + σ²(b); NNLS returns the σ drawn."""
+    rng = np.random.default_rng(3)
+    sigma = np.array([0.1, 0.2, 0.4])
+    bins = rng.integers(0, 3, size=(60000, 2))
+    e = rng.normal(size=(60000, 2)) * np.sqrt(sigma[bins[:, 0]] ** 2 + sigma[bins[:, 1]] ** 2)[:, None]
+    est, counts = _sigma_per_bin(bins, np.mean(e**2, axis=1), 3)
+    np.testing.assert_allclose(est, sigma, rtol=0.05)  # the smallest σ² is a small difference
+    assert counts.sum() == 120000
+
+
+def test_quick_calibration_writes_a_readable_file_with_its_command(tmp_path):
+    out = tmp_path / "cal.json"
+    res = runner.invoke(app, ["calibrate", "--quick", "--attitudes", "3", "--targets", "fy1", "--ranges-m", "40",
+                               "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    data = json.loads(out.read_text())
+    t = data["targets"]["fy1"]
+    assert t["samples_per_range"] == [3] and data["provenance"]["spec"]["attitudes"] == 3
+    assert "--quick" in data["provenance"]["command"]
+    # truth-checked matches exist and their residual is sub-pixel (the truth tolerance is 2 px)
+    assert t["cross_view"]["correct"][0][0] > 10
+    assert 0.05 < t["pair_residual_rms_px_per_axis"] < 1.0
+    cal = SiftCalibration.from_dict(data, "fy1")
+    assert np.all(cal.sigma_px > 0) and 0 < cal.pair_survival[0, 0] <= 1
+
+
+def test_calibrate_refuses_an_unknown_target_in_one_line():
+    res = runner.invoke(app, ["calibrate", "--quick", "--targets", "fy2"])
+    assert res.exit_code == 2 and "--targets" in res.output and len(res.output.strip().splitlines()) == 1

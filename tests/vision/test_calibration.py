@@ -1,0 +1,62 @@
+"""The shipped rendered-mode calibration and its interpolation (vision.calibration)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from vision.calibration import SIZE_EDGES_PX, calibration_path, load_calibration
+
+
+@pytest.fixture(scope="module")
+def data():
+    return json.loads(calibration_path().read_text(encoding="utf-8"))
+
+
+def test_shipped_calibration_states_its_provenance_and_sample_counts(data):
+    p = data["provenance"]
+    assert p["command"].startswith("coobs calibrate")
+    assert p["renderer"]["function"] == "vision.render.render" and p["renderer"]["image_px"] == 1024
+    assert p["detector"]["opencv_options"] == {"enable_precise_upscale": True}
+    assert set(data["targets"]) >= {"fy1", "topex"}
+    for t in data["targets"].values():
+        assert t["ranges_m"] == [40.0, 80.0]
+        assert min(t["samples_per_range"]) >= 20
+        assert sum(t["sigma_pairs_per_bin"]) > 5000
+
+
+@pytest.mark.parametrize("name", ["fy1", "topex"])
+def test_measured_sigma_grows_from_the_smallest_to_the_largest_sift_keypoints(name):
+    cal = load_calibration(name)
+    assert 0.05 < cal.sigma_px[0] < 0.3             # issue 16: 0.15-0.20 px for the bulk of keypoints
+    assert cal.sigma_px[-1] > 1.5 * cal.sigma_px[0]  # a 32 px blob is localised worse than a 2 px one
+    sizes = 0.5 * (SIZE_EDGES_PX[:-2] + SIZE_EDGES_PX[1:-1])
+    np.testing.assert_array_equal(cal.sigma_for_size(sizes), cal.sigma_px[:-1])
+
+
+def test_density_is_interpolated_in_log_footprint_and_follows_the_power_law_beyond():
+    cal = load_calibration("fy1")
+    f0, f1 = cal.footprint_m_per_px
+    cos_v, sun = np.array([0.95]), np.array([5])
+    d0, d1 = cal.density(f0, cos_v, sun), cal.density(f1, cos_v, sun)
+    mid = cal.density(np.sqrt(f0 * f1), cos_v, sun)
+    np.testing.assert_allclose(mid, np.sqrt(d0 * d1), rtol=1e-12)
+    beyond = cal.density(f1 * f1 / f0, cos_v, sun)                  # one more factor of two in range
+    np.testing.assert_allclose(beyond, d1 * d1 / d0, rtol=1e-12)
+
+
+def test_rates_hold_the_nearest_calibrated_value_outside_the_calibrated_grid():
+    cal = load_calibration("topex")
+    f0 = cal.footprint_m_per_px[0]
+    np.testing.assert_allclose(cal.association_survival_at(0.5 * f0, 0.1),
+                               cal.association_survival[0, 0])
+    np.testing.assert_allclose(cal.association_survival_at(f0, cal.change_deg[-1] + 30),
+                               cal.association_survival[0, -1])
+    assert np.all(np.diff(cal.association_survival_at(f0, cal.change_deg)) <= 0.05)  # survival falls with the change
+
+
+def test_unknown_meshes_use_the_topex_calibration_and_a_missing_file_is_one_error(tmp_path):
+    assert load_calibration("hubble").target == "topex"
+    assert load_calibration("FY-1-like").target == "fy1"
+    with pytest.raises(ValueError, match="coobs calibrate"):
+        load_calibration("fy1", path=tmp_path / "none.json")

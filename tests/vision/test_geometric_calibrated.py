@@ -1,0 +1,83 @@
+"""The geometric mode driven by the rendered-mode calibration (noise_model="calibrated")."""
+
+import numpy as np
+import pytest
+from scipy.special import ndtr
+
+from attitude.quaternion import matrix_from_quat, quat_from_rotvec, quat_multiply, quat_normalize
+from tests.vision.geometric_three_cameras import three_cameras
+from vision.calibration import load_calibration
+from vision.camera import PinholeCamera
+from vision.geometric import observe_epochs, surface_features
+from vision.geometric_calibrated import calibrated_feature_count, pair_copula_correlation
+
+CAM = PinholeCamera.from_fov(1024, 1024, fov_x_deg=20.0)
+SUN = np.array([1.0, -0.5, 0.6])
+
+
+def _trial(target, T, E, step_deg, seed):
+    q = [quat_normalize(np.random.default_rng(seed).normal(size=4))]
+    dq = quat_from_rotvec(np.radians(step_deg) * np.array([1.0, 1.0, 1.0]) / np.sqrt(3))
+    for _ in range(E - 1):
+        q.append(quat_normalize(quat_multiply(dq, q[-1])))
+    q = np.array(q)
+    feats = surface_features(target, n_features=calibrated_feature_count(CAM, target, T))
+    obs = observe_epochs(CAM, np.broadcast_to(T, (E, *T.shape)), target, q, np.broadcast_to(SUN, (E, 3)),
+                         rng=seed, features=feats, noise_model="calibrated")
+    return q, obs
+
+
+def test_pixel_noise_has_the_calibrated_sigma_of_each_keypoint_size(fy1):
+    """(uv − true projection) / track σ is unit normal per axis over the correct tracks."""
+    T = three_cameras(40.0, 10.0)
+    q, obs = _trial(fy1, T, 6, 0.87, 1)
+    cal = load_calibration("fy1")
+    z = []
+    for o, qk in zip(obs, q, strict=True):
+        good = o.feature_id >= 0
+        np.testing.assert_array_equal(o.track_sigma_px[o.seen], cal.sigma_for_size(o.keypoint_size_px)[o.seen])
+        X_H = o.X_T_true[good] @ matrix_from_quat(qk).T
+        for i in range(3):
+            s = o.seen[good, i]
+            uv, _ = CAM.project_world(X_H[s], T[i])
+            z.append((o.uv_px[good][s, i] - uv) / o.track_sigma_px[good][s, i, None])
+    z = np.concatenate(z).ravel()
+    assert z.size > 400
+    assert abs(np.std(z) - 1.0) < 0.06 and abs(np.mean(z)) < 0.1
+
+
+def test_descriptors_survive_the_step_between_epochs_at_the_calibrated_rate(fy1):
+    """Features tracked at consecutive epochs keep their descriptor with the measured survival."""
+    T = three_cameras(40.0, 10.0)
+    step = 10.0
+    q, obs = _trial(fy1, T, 8, step, 2)
+    cal = load_calibration("fy1")
+    kept, total = 0, 0
+    for a, b in zip(obs[:-1], obs[1:], strict=True):
+        common, ia, ib = np.intersect1d(a.feature_id[a.feature_id >= 0], b.feature_id, return_indices=True)
+        ia = np.flatnonzero(a.feature_id >= 0)[ia]
+        same = np.sum(a.descriptors[ia] * b.descriptors[ib], axis=1) > 0.9
+        kept += int(same.sum())
+        total += len(common)
+    expected = float(cal.association_survival_at(cal.footprint_m_per_px[0], step))
+    assert total > 300
+    assert abs(kept / total - expected) < 0.08
+
+
+@pytest.mark.parametrize("survival", [0.1, 0.4])
+def test_copula_correlation_reproduces_the_three_over_two_view_track_ratio(survival):
+    """Monte Carlo of three correlated pair matches against the ratio the bisection was asked for."""
+    rho = pair_copula_correlation(1.6, survival)
+    rng = np.random.default_rng(0)
+    n = 100_000
+    z = np.sqrt(rho) * rng.standard_normal((n, 1)) + np.sqrt(1 - rho) * rng.standard_normal((n, 3))
+    match = ndtr(z) < survival
+    assert abs(match.any(axis=1).mean() / match[:, 0].mean() - 1.6) < 0.05
+
+
+def test_fixed_model_is_the_default_and_refuses_unknown_noise_models(fy1):
+    T = three_cameras(40.0, 10.0)
+    with pytest.raises(ValueError, match="noise_model"):
+        observe_epochs(CAM, T[None], fy1, np.array([[1.0, 0, 0, 0]]), SUN[None], rng=0, noise_model="fancy")
+    o = observe_epochs(CAM, T[None], fy1, np.array([[1.0, 0, 0, 0]]), SUN[None], rng=0)[0]
+    assert o.track_sigma_px is None and o.pixel_sigma_px == 0.5

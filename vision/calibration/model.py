@@ -1,0 +1,255 @@
+"""Interpolation of the measured rendered-mode statistics (:class:`SiftCalibration`).
+
+Every table is indexed by the calibrated ranges, converted to the pixel footprint ``z / f`` (m/px) so
+that a camera with another focal length or range uses the same numbers at the same image scale.
+Between calibrated footprints values are interpolated linearly in log footprint; beyond them the
+detection density follows the power law of the two nearest footprints and the rates and sizes are
+held at the nearest calibrated value (``docs/vision.md`` says where that matters).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+__all__ = ["COS_VIEW_EDGES", "SIZE_EDGES_PX", "SUN_BIN_EDGES", "SiftCalibration", "calibration_path",
+           "load_calibration"]
+
+#: SIFT keypoint diameter bins, px (half octaves from 2√2 px)
+SIZE_EDGES_PX = np.array([0.0, 2.83, 4.0, 5.66, 8.0, 11.3, 16.0, 22.6, 32.0, np.inf])
+#: |cos| of the angle between the surface normal and the direction to the camera (90°, 75°, 60°, 45°, 30°, 0°)
+COS_VIEW_EDGES = np.array([0.0, 0.26, 0.5, 0.71, 0.87, 1.0001])
+#: Sun bins: bin 0 = not lit; bins 1.. = cosine of the Sun incidence on the lit side
+SUN_BIN_EDGES = np.array([-1.0, 0.0, 0.26, 0.5, 0.71, 0.87, 1.0001])
+#: visible area below which a (view, Sun) density cell is taken from the factorised marginals, m²
+_MIN_CELL_AREA_M2 = 2.0
+#: floor of a bin's σ (a bin whose least-squares σ² came out 0), px
+_MIN_SIGMA_PX = 0.02
+
+
+def calibration_path() -> Path:
+    """The shipped calibration file, ``vision/calibration/rendered_sift.json``."""
+    return Path(__file__).with_name("rendered_sift.json")
+
+
+def _fill_nearest(values: list) -> np.ndarray:
+    """Bins without data (None/NaN) take the value of the nearest bin with data."""
+    v = np.array([np.nan if x is None else float(x) for x in values])
+    ok = np.nonzero(np.isfinite(v))[0]
+    if ok.size == 0:
+        raise ValueError("calibration: a table has no measured value")
+    idx = np.arange(len(v))
+    near = ok[np.argmin(np.abs(idx[:, None] - ok[None, :]), axis=1)]
+    return v[near]
+
+
+def _table(rows: list) -> np.ndarray:
+    return np.stack([_fill_nearest(r) for r in rows])
+
+
+@dataclass(frozen=True, eq=False)
+class SiftCalibration:
+    """Measured SIFT statistics of one target (see :mod:`vision.calibration`).
+
+    Attributes
+    ----------
+    target : str
+        Calibration name (``"fy1"``, ``"topex"``).
+    footprint_m_per_px : ndarray (R,)
+        Calibrated image scales (range / focal length), m/px.
+    sigma_px : ndarray (Z,)
+        Keypoint localisation σ per axis for each size bin of :data:`SIZE_EDGES_PX`, px.
+    density_per_m2 : ndarray (R, V, S)
+        Keypoints per m² of visible surface by footprint, view bin and Sun bin.
+    size_quantiles : ndarray (Q,), size_px_quantiles : ndarray (R, Q)
+        Quantiles of the diameter of tracked keypoints, px.
+    cross_view_deg : ndarray (A,), pair_survival, false_match_rate : ndarray (R, A)
+        Cross-view match survival and false-match rate against the angle between the cameras.
+    change_deg : ndarray (D,), association_survival, false_association_rate : ndarray (R, D)
+        Inter-epoch association survival and false-association rate against the viewpoint change.
+    three_over_two_ratio : float
+        Tracks of three cameras at the first cross-view angle over matches of two of them.
+    measured_cell : ndarray (R, V, S) bool
+        Density cells with enough surface seen to be measured (the others are the product of the
+        view and Sun marginals).
+    provenance : dict
+    """
+
+    target: str
+    footprint_m_per_px: np.ndarray
+    sigma_px: np.ndarray
+    density_per_m2: np.ndarray
+    size_quantiles: np.ndarray
+    size_px_quantiles: np.ndarray
+    cross_view_deg: np.ndarray
+    pair_survival: np.ndarray
+    false_match_rate: np.ndarray
+    change_deg: np.ndarray
+    association_survival: np.ndarray
+    false_association_rate: np.ndarray
+    three_over_two_ratio: float
+    measured_cell: np.ndarray
+    provenance: dict
+
+    @classmethod
+    def from_dict(cls, data: dict, target: str) -> SiftCalibration:
+        """Read one target's tables from the calibration file's dict."""
+        if target not in data.get("targets", {}):
+            raise ValueError(f"target: no calibration for {target!r}; calibrated: {sorted(data.get('targets', {}))}")
+        t = data["targets"][target]
+        kp = np.asarray(t["keypoints"], dtype=float)          # (R, V, S)
+        area = np.asarray(t["visible_area_m2"], dtype=float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rho_r = kp.sum(axis=(1, 2)) / area.sum(axis=(1, 2))
+            g_v = (kp.sum(axis=2) / area.sum(axis=2)) / rho_r[:, None]
+            h_s = (kp.sum(axis=1) / area.sum(axis=1)) / rho_r[:, None]
+            cell = kp / area
+        factor = rho_r[:, None, None] * np.nan_to_num(g_v)[:, :, None] * np.nan_to_num(h_s)[:, None, :]
+        dens = np.where(area >= _MIN_CELL_AREA_M2, cell, factor)
+        q = [r for r in t["track_size_px_quantiles_by_range"]]
+        qfill = next(r for r in q if r is not None)
+        return cls(
+            target=target,
+            footprint_m_per_px=np.asarray(t["footprint_m_per_px"], dtype=float),
+            sigma_px=np.maximum(_fill_nearest(t["sigma_px"]), _MIN_SIGMA_PX),
+            density_per_m2=np.nan_to_num(dens),
+            size_quantiles=np.asarray(t["size_quantiles"], dtype=float),
+            size_px_quantiles=np.asarray([r if r is not None else qfill for r in q], dtype=float),
+            cross_view_deg=np.asarray(t["cross_view"]["angle_deg"], dtype=float),
+            pair_survival=_table(t["cross_view"]["survival"]),
+            false_match_rate=_table(t["cross_view"]["false_match_rate"]),
+            change_deg=np.asarray(t["association"]["change_deg"], dtype=float),
+            association_survival=_table(t["association"]["survival"]),
+            false_association_rate=_table(t["association"]["false_rate"]),
+            measured_cell=area >= _MIN_CELL_AREA_M2,
+            three_over_two_ratio=(float(sum(t["cross_view"]["three_view_tracks"]))
+                                  / max(1.0, float(sum(t["cross_view"]["two_view_tracks"])))),
+            provenance=dict(data.get("provenance", {})),
+        )
+
+    # -- interpolation helpers -------------------------------------------------------------------
+
+    def _range_weights(self, footprint: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Lower index, upper index and weight of the upper one, linear in log footprint."""
+        lf = np.log(self.footprint_m_per_px)
+        x = np.log(np.asarray(footprint, dtype=float))
+        if lf.size == 1:
+            z = np.zeros(x.shape, dtype=int)
+            return z, z, np.zeros(x.shape)
+        i = np.clip(np.searchsorted(lf, x) - 1, 0, lf.size - 2)
+        w = (x - lf[i]) / (lf[i + 1] - lf[i])
+        return i, i + 1, w
+
+    def _by_range(self, table: np.ndarray, footprint: ArrayLike, column: np.ndarray) -> np.ndarray:
+        """``table[r, column]`` interpolated in footprint (held beyond the calibrated ones)."""
+        i, j, w = self._range_weights(np.asarray(footprint, dtype=float))
+        w = np.clip(w, 0.0, 1.0)
+        return (1.0 - w) * table[i, column] + w * table[j, column]
+
+    @staticmethod
+    def _along(grid: np.ndarray, values: np.ndarray, x: ArrayLike) -> np.ndarray:
+        """Per-range rows ``values (R, G)`` interpolated along ``grid`` at x; returns (R, ...) ."""
+        x = np.asarray(x, dtype=float)
+        return np.stack([np.interp(x, grid, row) for row in values])
+
+    # -- the measured statistics -----------------------------------------------------------------
+
+    def sigma_for_size(self, size_px: ArrayLike) -> np.ndarray:
+        """Localisation σ per axis of keypoints of these diameters, px (NaN for NaN sizes)."""
+        s = np.asarray(size_px, dtype=float)
+        b = np.clip(np.searchsorted(SIZE_EDGES_PX, np.nan_to_num(s), side="right") - 1, 0, len(self.sigma_px) - 1)
+        return np.where(np.isfinite(s), self.sigma_px[b], np.nan)
+
+    def density(self, footprint_m_per_px: ArrayLike, cos_view: ArrayLike, sun_bin: ArrayLike) -> np.ndarray:
+        """Keypoints per m² of visible surface (``sun_bin`` 0: not lit; see :data:`SUN_BIN_EDGES`)."""
+        fp = np.asarray(footprint_m_per_px, dtype=float)
+        v = np.clip(np.searchsorted(COS_VIEW_EDGES, np.abs(cos_view), side="right") - 1, 0, len(COS_VIEW_EDGES) - 2)
+        s = np.asarray(sun_bin, dtype=int)
+        i, j, w = self._range_weights(fp)
+        lo = np.maximum(self.density_per_m2[i, v, s], 1e-9)
+        hi = np.maximum(self.density_per_m2[j, v, s], 1e-9)
+        return np.exp((1.0 - w) * np.log(lo) + w * np.log(hi))
+
+    def sun_bin(self, cos_sun: ArrayLike, lit: ArrayLike) -> np.ndarray:
+        """Sun bin of surfaces with this Sun-incidence cosine (lit side) and lit flag."""
+        b = np.clip(np.searchsorted(SUN_BIN_EDGES, np.asarray(cos_sun, dtype=float), side="right") - 1,
+                    1, len(SUN_BIN_EDGES) - 2)
+        return np.where(np.asarray(lit, dtype=bool), b, 0)
+
+    def max_density(self, footprint_m_per_px: float) -> float:
+        """Largest measured density of a (view, Sun) cell at this footprint, per m² (cells with at least
+        2 m² of surface seen; the power law of :meth:`density` between and beyond footprints)."""
+        fp = float(footprint_m_per_px)
+        i, j, w = self._range_weights(np.array(fp))
+        lo = np.max(np.where(self.measured_cell[i], self.density_per_m2[i], 0.0))
+        hi = np.max(np.where(self.measured_cell[j], self.density_per_m2[j], 0.0))
+        return float(np.exp((1.0 - w) * np.log(max(lo, 1e-9)) + w * np.log(max(hi, 1e-9))))
+
+    def size_px(self, footprint_m_per_px: ArrayLike, u: ArrayLike) -> np.ndarray:
+        """Diameter of a tracked keypoint at quantile ``u`` ∈ [0, 1] of the size distribution, px."""
+        fp = np.asarray(footprint_m_per_px, dtype=float)
+        u = np.asarray(u, dtype=float)
+        fp, u = np.broadcast_arrays(fp, u)
+        i, j, w = self._range_weights(fp)
+        w = np.clip(w, 0.0, 1.0)
+        qi = np.empty(fp.shape)
+        qj = np.empty(fp.shape)
+        for r in np.unique(np.concatenate([i.ravel(), j.ravel()])):
+            qi[i == r] = np.interp(u[i == r], self.size_quantiles, self.size_px_quantiles[r])
+            qj[j == r] = np.interp(u[j == r], self.size_quantiles, self.size_px_quantiles[r])
+        return np.exp((1.0 - w) * np.log(qi) + w * np.log(qj))
+
+    def _rate(self, grid: np.ndarray, table: np.ndarray, footprint, x) -> np.ndarray:
+        fp, x = np.broadcast_arrays(np.asarray(footprint, dtype=float), np.asarray(x, dtype=float))
+        rows = self._along(grid, table, x)               # (R, ...)
+        i, j, w = self._range_weights(fp)
+        w = np.clip(w, 0.0, 1.0)
+        take = np.take_along_axis
+        lo = take(rows, i[None], axis=0)[0]
+        hi = take(rows, j[None], axis=0)[0]
+        return np.clip((1.0 - w) * lo + w * hi, 0.0, 1.0)
+
+    def pair_survival_at(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike) -> np.ndarray:
+        """Probability that a keypoint seen by a second camera ``angle_deg`` away is correctly matched."""
+        return self._rate(self.cross_view_deg, self.pair_survival, footprint_m_per_px, angle_deg)
+
+    def false_match_rate_at(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike) -> np.ndarray:
+        """Fraction of cross-view matches that are wrong."""
+        return self._rate(self.cross_view_deg, self.false_match_rate, footprint_m_per_px, angle_deg)
+
+    def association_survival_at(self, footprint_m_per_px: ArrayLike, change_deg: ArrayLike) -> np.ndarray:
+        """Probability that a track is associated with itself after a viewpoint change of ``change_deg``."""
+        return self._rate(self.change_deg, self.association_survival, footprint_m_per_px, change_deg)
+
+    def false_association_rate_at(self, footprint_m_per_px: ArrayLike, change_deg: ArrayLike) -> np.ndarray:
+        """Fraction of inter-epoch associations that are wrong."""
+        return self._rate(self.change_deg, self.false_association_rate, footprint_m_per_px, change_deg)
+
+
+@functools.lru_cache(maxsize=4)
+def _read(path: str) -> dict:
+    with open(path, encoding="utf-8") as f:
+        return json.load(f)
+
+
+def load_calibration(target: str, *, path: str | Path | None = None) -> SiftCalibration:
+    """The calibration of a target: ``"fy1"`` for the FY-1-like target, ``"topex"`` for meshes.
+
+    ``target`` is a calibration name or a :class:`vision.target.Target` name: the procedural
+    FY-1-like target (``"FY-1-like"``) uses ``"fy1"``, every mesh the TOPEX/Poseidon calibration
+    (meshes get the same procedural texture family). ``path`` defaults to the shipped file.
+    """
+    p = str(path if path is not None else calibration_path())
+    try:
+        data = _read(p)
+    except FileNotFoundError:
+        raise ValueError(f"calibration file not found: {p} (run 'coobs calibrate')") from None
+    name = "fy1" if target in ("fy1", "FY-1-like") else target
+    if name not in data.get("targets", {}):
+        name = "topex"
+    return SiftCalibration.from_dict(data, name)

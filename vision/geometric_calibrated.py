@@ -1,0 +1,223 @@
+"""The geometric mode driven by the rendered-mode calibration (``noise_model = "calibrated"``).
+
+Same surface features and visibility tests as :mod:`vision.geometric` (in the image, facing the
+camera, lit side, unoccluded, unshadowed), then, with the statistics of :mod:`vision.calibration`
+measured on rendered images:
+
+1. **Detection**: feature f is detected in view i when ``u_f < ρ(z/f, view angle, Sun incidence) / ρ_F``,
+   the measured keypoint density over the features' density ``ρ_F = N / area``.  ``u_f`` is one
+   uniform per feature for the whole call, so detections are correlated across views and persist
+   across epochs, as a textured spot is detected again when the view barely changes.
+2. **Matching across views**: a pair of views (i, j) that both detect f matches it with the measured
+   survival ``S(z/f, angle between the cameras)`` through a Gaussian copula whose correlation
+   between pairs reproduces the measured ratio of three-view to two-view tracks; tracks are the
+   connected components of the pair matches with at least ``min_views`` views.
+3. **Localisation**: every (track, view) gets a keypoint size (quantile ``v_f`` of the measured size
+   distribution of tracked keypoints at its image scale, one ``v_f`` per feature) and the measured
+   σ of that size; the projection gets Gaussian noise of that σ, carried as ``track_sigma_px``.
+4. **False matches** at the measured cross-view rate, made as in the fixed model (a wrong point on
+   the first view's ray: epipolar-consistent).
+5. **Association between epochs**: each feature keeps its descriptor from epoch to epoch with the
+   measured association survival at the viewpoint change between the two epochs (the rotation of
+   the camera frames relative to the body); otherwise it gets a new, unrelated descriptor.  A
+   fraction of the tracks (the measured false-association rate) takes the previous descriptor of
+   another feature instead: a false association.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.special import ndtr, ndtri
+
+from vision.calibration import SiftCalibration, load_calibration
+from vision.camera import PinholeCamera
+from vision.observation import (
+    REASON_EARTH_SHADOW,
+    REASON_OUTSIDE_FOV,
+    REASON_TOO_FEW_MATCHES,
+    Observation,
+)
+from vision.target import Target
+
+__all__ = ["calibrated_feature_count", "pair_copula_correlation", "observe_epochs_calibrated"]
+
+#: margin on the largest measured density when sizing the feature set
+_DENSITY_MARGIN = 1.2
+_MAX_FEATURES = 100_000
+
+
+def calibrated_feature_count(camera: PinholeCamera, target: Target, T_CW: np.ndarray,
+                             calibration: SiftCalibration | None = None) -> int:
+    """Surface features needed so that the largest measured density at the closest camera is reachable."""
+    cal = calibration if calibration is not None else load_calibration(target.name)
+    T = np.asarray(T_CW, dtype=float).reshape(-1, 4, 4)
+    c = -np.einsum("kji,kj->ki", T[:, :3, :3], T[:, :3, 3])
+    z_min = max(float(np.min(np.linalg.norm(c, axis=1))) - target.radius_m, 0.5 * float(np.min(np.linalg.norm(c, axis=1))))
+    f = float(np.sqrt(camera.K[0, 0] * camera.K[1, 1]))
+    rho = cal.max_density(z_min / f)
+    n = int(math.ceil(_DENSITY_MARGIN * rho * float(target.triangle_areas_m2.sum())))
+    return min(max(n, 1), _MAX_FEATURES)
+
+
+def _three_over_two(rho: float, s: float) -> float:
+    """P(a feature seen in 3 views forms a track) / P(one pair matches), equicorrelated copula."""
+    if s <= 0:
+        return 1.0
+    c = ndtri(min(s, 1 - 1e-12))
+    x, w = np.polynomial.hermite_e.hermegauss(64)
+    w = w / w.sum()
+    r = min(max(rho, 0.0), 1 - 1e-9)
+    fail = 1.0 - ndtr((c - math.sqrt(r) * x) / math.sqrt(1.0 - r))  # each pair fails given the common factor
+    return float((1.0 - np.sum(w * fail**3)) / s)
+
+
+def pair_copula_correlation(ratio_three_over_two: float, survival: float) -> float:
+    """Correlation of the pair-match Gaussian copula that gives this 3-view / 2-view track ratio.
+
+    With independent pairs (0) a feature seen in three views forms a track about three times as
+    often as in two; with fully correlated pairs (1) equally often.  Solved by bisection.
+    """
+    target = float(np.clip(ratio_three_over_two, _three_over_two(1.0, survival), _three_over_two(0.0, survival)))
+    lo, hi = 0.0, 1.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if _three_over_two(mid, survival) > target:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def _rotation_angle_deg(R: np.ndarray) -> np.ndarray:
+    return np.degrees(np.arccos(np.clip((np.trace(R, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)))
+
+
+def _components(adj: np.ndarray) -> np.ndarray:
+    """Views connected to each feature's best-connected view: ``adj (N, n, n)`` bool → ``(N, n)``."""
+    N, n, _ = adj.shape
+    reach = adj | np.eye(n, dtype=bool)[None]
+    for _ in range(max(1, int(math.ceil(math.log2(max(n, 2)))))):
+        reach = (reach.astype(np.int32) @ reach.astype(np.int32)) > 0
+    root = np.argmax(adj.sum(axis=2), axis=1)
+    return reach[np.arange(N), root]
+
+
+def observe_epochs_calibrated(cams, T, target, q, sun, fsun, feats, rng, *, calibration, min_views, cos_view,
+                              cos_sun, descriptor_noise, margin_px, batch_size) -> list[Observation]:
+    """The calibrated model (module docstring) over epochs already validated by :func:`vision.geometric.observe_epochs`."""
+    from vision.geometric import _false_matches, _geometry, _occlude, _sun_T
+
+    cal = calibration if calibration is not None else load_calibration(target.name)
+    E, n = T.shape[:2]
+    N = len(feats)
+    D = feats.descriptors.shape[1]
+    rho_F = N / float(target.triangle_areas_m2.sum())
+    f_px = np.array([math.sqrt(c.K[0, 0] * c.K[1, 1]) for c in cams])
+    # per-feature draws that hold for the whole call (consecutive epochs of one trial)
+    u_det = rng.random(N)
+    v_size = rng.random(N)
+    z_common = rng.standard_normal(N)
+    eps_pair = rng.standard_normal((N, n, n))
+    eps_pair = np.triu(eps_pair, 1) + np.swapaxes(np.triu(eps_pair, 1), 1, 2)
+    r2v = cal.three_over_two_ratio
+    rho_c = pair_copula_correlation(r2v, float(np.mean(cal.pair_survival[:, 0])))
+    z_pair = math.sqrt(rho_c) * z_common[:, None, None] + math.sqrt(1.0 - rho_c) * eps_pair
+    u_pair = ndtr(z_pair)                                                  # (N, n, n) uniform, correlated
+    desc_state = feats.descriptors.copy()
+    prev = None                                                           # (R_CT (n,3,3), tracked ids, states)
+    out: list[Observation] = []
+    size = tuple(int(s) for s in cams[0].image_size)
+    for b0 in range(0, E, int(batch_size)):
+        sl = slice(b0, min(E, b0 + int(batch_size)))
+        g = _geometry(cams, T[sl], q[sl], sun[sl], fsun[sl], feats, min_feature_px=0.0, cos_view=cos_view,
+                      cos_sun=cos_sun, margin_px=margin_px)
+        fp = g.z / f_px[None, :, None]                                    # (e, n, N) m/px
+        with np.errstate(invalid="ignore"):
+            sun_bin = cal.sun_bin(np.where(g.cos_view >= 0, 1.0, -1.0) * g.cos_sun, True)
+            p_det = cal.density(np.where(g.vis, fp, 1.0), g.cos_view, sun_bin) / rho_F
+        g.vis &= u_det[None, None, :] < p_det
+        _occlude(g, target, feats, _sun_T(q[sl], sun[sl]))
+        for k in range(g.vis.shape[0]):
+            e = b0 + k
+            Te = T[e]
+            if fsun[e] == 0.0:
+                out.append(Observation.empty(g.K, Te, size, float(np.mean(cal.sigma_px)), REASON_EARTH_SHADOW,
+                                             descriptor_dim=D))
+                prev = None
+                continue
+            if g.in_fov[k].sum() < 2:
+                out.append(Observation.empty(g.K, Te, size, float(np.mean(cal.sigma_px)), REASON_OUTSIDE_FOV,
+                                             descriptor_dim=D))
+                prev = None
+                continue
+            det = g.vis[k].T                                              # (N, n)
+            c_dir = g.c_T[k] / np.linalg.norm(g.c_T[k], axis=1, keepdims=True)
+            ang = np.degrees(np.arccos(np.clip(c_dir @ c_dir.T, -1.0, 1.0)))   # (n, n) between the cameras
+            n_det = det.sum(axis=1)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                fp_f = np.where(n_det > 0, np.sum(np.where(det, fp[k].T, 0.0), axis=1) / n_det, np.nan)  # (N,)
+            cand = np.nonzero(det.sum(axis=1) >= 2)[0]
+            S = cal.pair_survival_at(np.nan_to_num(fp_f[cand], nan=1.0)[:, None, None], ang[None])
+            adj = det[cand][:, :, None] & det[cand][:, None, :] & (u_pair[cand] < S)
+            adj &= ~np.eye(n, dtype=bool)[None]
+            members = _components(adj) & det[cand]
+            is_track = members.sum(axis=1) >= min_views
+            fid = cand[is_track]
+            seen = members[is_track]                                      # (M, n)
+            # association state: keep, renew or (false association) take another feature's descriptor
+            if prev is not None:
+                change = float(np.mean(_rotation_angle_deg(g.R_CT[k] @ np.swapaxes(prev[0], -1, -2))))
+                fin = np.isfinite(fp_f)
+                fpa = np.where(fin, fp_f, float(np.median(fp_f[fin])) if fin.any() else 1.0)
+                keep = rng.random(N) < cal.association_survival_at(fpa, change)
+                fresh = rng.standard_normal((N, D)).astype(np.float32)
+                fresh /= np.linalg.norm(fresh, axis=1, keepdims=True)
+                new_state = np.where(keep[:, None], desc_state, fresh)
+                donors = prev[1]
+                if len(fid) and len(donors) > 1:
+                    fa = cal.false_association_rate_at(fpa[fid], change)
+                    recv = fid[rng.random(len(fid)) < fa]
+                    if len(recv):
+                        pick = donors[rng.integers(0, len(donors), len(recv))]
+                        ok = pick != recv
+                        recv, pick = recv[ok], pick[ok]
+                        new_state[recv] = prev[2][pick]
+                        new_state[pick] = fresh[recv]
+                desc_state = new_state
+            M = len(fid)
+            if M == 0:
+                out.append(Observation.empty(g.K, Te, size, float(np.mean(cal.sigma_px)), REASON_TOO_FEW_MATCHES,
+                                             descriptor_dim=D))
+                prev = (g.R_CT[k], fid, desc_state.copy())
+                continue
+            uv_e = np.swapaxes(g.uv[k][:, fid], 0, 1).copy()              # (M, n, 2)
+            size_px = cal.size_px(fp[k][:, fid].T, np.broadcast_to(v_size[fid, None], (M, n)))
+            sig = cal.sigma_for_size(size_px)
+            uv_e += sig[..., None] * rng.standard_normal(uv_e.shape)
+            uv_e[~seen] = np.nan
+            desc = desc_state[fid].copy()
+            if descriptor_noise > 0:
+                desc += (descriptor_noise / np.sqrt(D)) * rng.standard_normal(desc.shape).astype(np.float32)
+                desc /= np.linalg.norm(desc, axis=1, keepdims=True)
+            ids = fid.astype(np.int64)
+            X_true = feats.X_T[fid].copy()
+            prev = (g.R_CT[k], fid, desc_state.copy())
+            pair = [(i, j) for i in range(n) for j in range(i + 1, n)]
+            fp_med = float(np.median(fp_f[fid]))
+            fm = float(np.mean([cal.false_match_rate_at(fp_med, ang[i, j]) for i, j in pair]))
+            if fm > 0:
+                keep_m = _false_matches(rng, fm, uv_e, seen, g.z[k][:, fid].T, cams, Te, desc, ids, X_true,
+                                        target.radius_m, float(np.median(sig)), margin_px)
+                uv_e, desc, ids, X_true = uv_e[keep_m], desc[keep_m], ids[keep_m], X_true[keep_m]
+                sig, size_px = sig[keep_m], size_px[keep_m]
+            present = np.isfinite(uv_e).all(axis=-1)
+            sig = np.where(present, sig, np.nan)
+            size_px = np.where(present, size_px, np.nan)
+            out.append(Observation(uv_px=uv_e, descriptors=desc, K=g.K, T_CW=Te, image_size=size,
+                                   pixel_sigma_px=float(np.sqrt(np.mean(sig[present] ** 2))) if present.any()
+                                   else float(np.mean(cal.sigma_px)), feature_id=ids,
+                                   X_T_true=X_true, failure_reason="" if len(ids) else REASON_TOO_FEW_MATCHES,
+                                   track_sigma_px=sig, keypoint_size_px=size_px))
+    return out
