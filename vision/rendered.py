@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike
 from attitude.quaternion import matrix_from_quat
 from vision.calibration import SiftCalibration, load_calibration
 from vision.camera import PinholeCamera, cameras_per_view, check_pose
-from vision.features import detect, match_views
+from vision.features import Keypoints, detect, match_views
 from vision.observation import REASON_OUTSIDE_FOV, Observation
 from vision.render import (
     REASON_BEHIND_CAMERA,
@@ -27,11 +27,13 @@ from vision.render import (
     RenderResult,
     cast_body_points,
     render,
+    render_batch,
 )
 from vision.sensor import SensorModel
 from vision.target import Target
 
-__all__ = ["NOISE_MODELS", "foreground_mask", "label_tracks", "observe", "observe_renders", "render_views"]
+__all__ = ["NOISE_MODELS", "detect_views", "foreground_mask", "label_tracks", "observe", "observe_renders",
+           "render_views"]
 
 #: ``noise_model`` values: the configured σ for every keypoint, or the σ measured for its SIFT size
 NOISE_MODELS = ("fixed", "calibrated")
@@ -39,17 +41,42 @@ NOISE_MODELS = ("fixed", "calibrated")
 
 def render_views(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, target: Target,
                  q_HT: ArrayLike, sun_H: ArrayLike, *, rng: np.random.Generator | int | None = None,
-                 **render_options: Any) -> list[RenderResult]:
+                 batched: bool = True, **render_options: Any) -> list[RenderResult]:
     """Render the n views of one epoch, each with its own independent noise stream.
 
-    ``T_CW`` is ``(n, 4, 4)``; ``render_options`` go to :func:`vision.render.render`.
+    ``T_CW`` is ``(n, 4, 4)``; ``render_options`` go to :func:`vision.render.render`.  ``batched``:
+    all views in one :func:`vision.render.render_batch` call (the same images, faster); ``False``
+    renders view by view (the path before issue 16, kept as the benchmark's baseline).
     """
     T = check_pose(T_CW, name="T_CW")
     if T.ndim != 3:
         raise ValueError(f"T_CW must have shape (n, 4, 4), got {T.shape}")
     cams = cameras_per_view(camera, len(T))
     rngs = np.random.default_rng(rng).spawn(len(T))
+    if batched:
+        return render_batch(list(cams), T, target, q_HT, sun_H, rngs=rngs, **render_options)
     return [render(c, t, target, q_HT, sun_H, rng=r, **render_options) for c, t, r in zip(cams, T, rngs, strict=True)]
+
+
+def detect_views(renders: Sequence[RenderResult], *, detector: str = "sift", foreground_dn: float = 3.0,
+                 detector_options: dict | None = None, threads: int = 1) -> list[Keypoints]:
+    """Keypoints of every rendered view (in its ROI, on the target's foreground; none for a blind view).
+
+    ``threads > 1`` detects the views concurrently (OpenCV releases the GIL); the keypoints are the
+    same as one view after the other.
+    """
+    def one(r: RenderResult) -> Keypoints:
+        if not r.ok:
+            return detect(np.zeros((8, 8), np.uint8), detector=detector)
+        return detect(r.image, detector=detector, roi=r.roi, options=detector_options,
+                      mask=foreground_mask(r.image, threshold_dn=foreground_dn))
+
+    if int(threads) <= 1 or len(renders) < 2:
+        return [one(r) for r in renders]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(min(int(threads), len(renders))) as pool:
+        return list(pool.map(one, renders))
 
 
 def label_tracks(obs: Observation, renders: Sequence[RenderResult], target: Target, q_HT: ArrayLike,
@@ -123,8 +150,11 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
                     ratio: float = 0.6, epipolar_tol_px: float = 1.5, pixel_sigma_px: float = 0.5,
                     min_views: int = 2, truth_tol_px: float = 2.0, foreground_dn: float = 3.0,
                     guided: bool = False, detector_options: dict | None = None,
-                    noise_model: str = "fixed", calibration: SiftCalibration | None = None) -> Observation:
+                    noise_model: str = "fixed", calibration: SiftCalibration | None = None,
+                    threads: int = 1) -> Observation:
     """Detect, match and label features in already rendered views of one epoch.
+
+    ``threads``: views detected concurrently (:func:`detect_views`; the same keypoints).
 
     ``noise_model="fixed"`` gives every keypoint ``pixel_sigma_px``; ``"calibrated"`` gives each one
     the σ measured for its SIFT size (``calibration``, default: the shipped calibration of the
@@ -147,13 +177,8 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
         reason = next(r.failure_reason for r in renders if not r.ok)
         return Observation.empty(K, T, size, pixel_sigma_px,
                                  REASON_OUTSIDE_FOV if reason == REASON_BEHIND_CAMERA else reason)
-    kps = []
-    for r, vis in zip(renders, visible, strict=True):
-        if vis:
-            kps.append(detect(r.image, detector=detector, roi=r.roi, options=detector_options,
-                              mask=foreground_mask(r.image, threshold_dn=foreground_dn)))
-        else:
-            kps.append(detect(np.zeros((8, 8), np.uint8), detector=detector))
+    kps = detect_views(renders, detector=detector, foreground_dn=foreground_dn, detector_options=detector_options,
+                       threads=threads)
     obs = match_views(kps, cams, T, ratio=ratio, epipolar_tol_px=epipolar_tol_px,
                       min_views=min_views, pixel_sigma_px=pixel_sigma_px, guided=guided)
     if not obs.ok:

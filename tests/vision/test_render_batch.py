@@ -64,3 +64,28 @@ def test_batch_rejects_mismatched_view_counts():
     cam = PinholeCamera.from_fov(64, 64, fov_x_deg=20.0)
     with pytest.raises(ValueError, match="per view"):
         render_batch([cam], _cone(40.0, n=2), fy1_target(seed=0), [1.0, 0, 0, 0], [0, 0, 1.0], rngs=[0, 1])
+
+
+def test_rendered_mode_fast_path_gives_the_same_tracks_as_view_by_view():
+    """render_views(batched=True) and detect_views(threads=2) change nothing in the observation: the
+    same images, keypoints and tracks as view-by-view rendering and sequential detection."""
+    from vision.rendered import detect_views, observe_renders, render_views
+
+    cam = PinholeCamera.from_fov(1024, 1024, fov_x_deg=20.0)
+    target = fy1_target(seed=0)
+    T = _cone(80.0)
+    q = np.array([0.8, 0.3, -0.4, 0.3]) / np.linalg.norm([0.8, 0.3, -0.4, 0.3])
+    sun = np.array([1.0, -0.5, 0.6])
+    old = render_views(cam, T, target, q, sun, rng=3, batched=False)
+    new = render_views(cam, T, target, q, sun, rng=3)
+    for a, b in zip(old, new, strict=True):
+        np.testing.assert_array_equal(a.image, b.image)
+    k1 = detect_views(old)
+    k2 = detect_views(new, threads=2)
+    for a, b in zip(k1, k2, strict=True):
+        np.testing.assert_array_equal(a.uv_px, b.uv_px)
+        np.testing.assert_array_equal(a.descriptors, b.descriptors)
+    o1, o2 = observe_renders(old, target, q), observe_renders(new, target, q, threads=2)
+    assert o1.n_tracks > 10
+    np.testing.assert_array_equal(o1.uv_px, o2.uv_px)
+    np.testing.assert_array_equal(o1.feature_id, o2.feature_id)
