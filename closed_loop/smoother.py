@@ -74,7 +74,7 @@ class SmootherSettings:
     process_sigma_rate_rad_s: float = 1e-7
     gate_probability: float = 0.999
     huber_k: float = 3.0
-    relinearize_threshold: float = 1e-3
+    relinearize_threshold: float = 1e-5
     relinearize_skip: int = 5
 
 
@@ -113,16 +113,21 @@ class AttitudeSmoother:
 
     def __post_init__(self) -> None:
         p = gtsam.ISAM2Params()
-        p.setRelinearizeThreshold(self.settings.relinearize_threshold)
+        thr = gtsam.ISAM2ThresholdMap()
+        for ch, dim in (("y", 3), ("b", 3), ("w", 3), ("a", 3), ("l", 2)):
+            thr.insert((ch, np.full(dim, self.settings.relinearize_threshold)))
+        p.setRelinearizeThreshold(thr)
         p.relinearizeSkip = int(self.settings.relinearize_skip)
         p.setFactorization("QR")
-        p.setOptimizationParams(gtsam.ISAM2DoglegParams())
+        gn = gtsam.ISAM2GaussNewtonParams()
+        # propagate every change of the solution (the default 1e-3 would leave rates 0.06 deg/s stale)
+        gn.setWildfireThreshold(0.0)
+        p.setOptimizationParams(gn)
         self._isam = gtsam.ISAM2(p)
         self._graph = gtsam.NonlinearFactorGraph()
         self._values = gtsam.Values()
         self._all = gtsam.NonlinearFactorGraph()
         self._t: list[float] = []
-        self._est = gtsam.Values()
         self._frame_cov: dict[int, np.ndarray] = {}
 
     # ---------------------------------------------------------------- building
@@ -150,15 +155,22 @@ class AttitudeSmoother:
         g.add(gtsam.PriorFactorRot3(Y(0), _rot(R0.T), gtsam.noiseModel.Gaussian.Covariance(cov_eps)))
         g.add(gtsam.PriorFactorVector(W(0), np.asarray(omega_TN_T0_rad_s, float),
                                       gtsam.noiseModel.Gaussian.Covariance(np.asarray(cov_omega_T, float))))
-        sa, sl = (s.inertia_prior_sigma_axes_rad, s.inertia_prior_sigma_log) if s.estimate_inertia else (1e-9, 1e-9)
-        g.add(gtsam.PriorFactorRot3(A(0), _rot(shape.R_TP), gtsam.noiseModel.Isotropic.Sigma(3, sa)))
-        g.add(gtsam.PriorFactorVector(L(0), shape.log_ratios, gtsam.noiseModel.Isotropic.Sigma(2, sl)))
+        if s.estimate_inertia:
+            g.add(gtsam.PriorFactorRot3(A(0), _rot(shape.R_TP),
+                                        gtsam.noiseModel.Isotropic.Sigma(3, s.inertia_prior_sigma_axes_rad)))
+            g.add(gtsam.PriorFactorVector(L(0), shape.log_ratios,
+                                          gtsam.noiseModel.Isotropic.Sigma(2, s.inertia_prior_sigma_log)))
+            v.insert(A(0), _rot(shape.R_TP))
+            v.insert(L(0), shape.log_ratios)
         v.insert(Y(0), _rot(R0.T))
         v.insert(W(0), np.asarray(omega_TN_T0_rad_s, float))
-        v.insert(A(0), _rot(shape.R_TP))
-        v.insert(L(0), shape.log_ratios)
         self._t = [float(t_s)]
         self.update()
+
+    @property
+    def times(self) -> list[float]:
+        """Times of the epochs in the graph, s."""
+        return self._t
 
     @property
     def n_epochs(self) -> int:
@@ -166,8 +178,11 @@ class AttitudeSmoother:
         return len(self._t)
 
     def inertia(self) -> InertiaShape:
-        """The current estimate of the inertia shape."""
-        return InertiaShape(R_TP=self._est.atRot3(A(0)).matrix(), log_ratios=self._est.atVector(L(0)))
+        """The current estimate of the inertia shape (the prior's tensor when it is not estimated)."""
+        if not self.settings.estimate_inertia:
+            return InertiaShape.from_tensor(self.J_prior_kg_m2)
+        return InertiaShape(R_TP=self._isam.calculateEstimateRot3(A(0)).matrix(),
+                            log_ratios=self._isam.calculateEstimateVector(L(0)))
 
     def add_epoch(self, t_s: float) -> int:
         """A new epoch joined to the last by the dynamics factor, initialised by propagation; its index."""
@@ -179,8 +194,12 @@ class AttitudeSmoother:
         sig = np.concatenate([np.full(3, s.process_sigma_attitude_rad), np.full(3, s.process_sigma_rate_rad_s)])
         noise = gtsam.noiseModel.Diagonal.Sigmas(sig * np.sqrt(dt))
         n_sub = max(1, int(np.ceil(dt / 0.5)))
-        self._graph.add(torque_free_factor(noise, (Y(k - 1), W(k - 1), Y(k), W(k), A(0), L(0)), dt,
-                                           n_substeps=n_sub))
+        if s.estimate_inertia:
+            f = torque_free_factor(noise, (Y(k - 1), W(k - 1), Y(k), W(k), A(0), L(0)), dt, n_substeps=n_sub)
+        else:
+            f = torque_free_factor(noise, (Y(k - 1), W(k - 1), Y(k), W(k)), dt, n_substeps=n_sub,
+                                   J_T=np.asarray(self.J_prior_kg_m2, float))
+        self._graph.add(f)
         R, w = self.estimate(k - 1)
         Rp, wp = propagate_batch(R[None], w[None], self.inertia().J_T[None], dt, n_sub)
         self._values.insert(Y(k), _rot(Rp[0].T))
@@ -220,14 +239,15 @@ class AttitudeSmoother:
     def add_relative(self, j: int, k: int, dR_N: np.ndarray, cov_N: np.ndarray) -> None:
         """A relative-rotation factor ``R_NT(k) R_NT(j)ᵀ = dR_N`` with left N-frame covariance ``cov_N`` (rad²).
 
-        Both frames must have been added (:meth:`add_frame`); the factor joins their cloud
-        orientations with ``cov_N`` less the frames' shares ``Σ_k + ΔR Σ_j ΔRᵀ`` (kept positive
-        definite: at least 10 % of ``cov_N`` in every direction).  Call :meth:`gate` first; this
-        adds unconditionally (Huber-robust).
+        Where the frames were added (:meth:`add_frame`) the factor joins their cloud orientations
+        with ``cov_N`` less the frames' shares ``Σ_k + ΔR Σ_j ΔRᵀ`` (kept positive definite: at
+        least 10 % of ``cov_N`` in every direction); otherwise it joins the attitudes with
+        ``cov_N``.  Call :meth:`gate` first; this adds unconditionally (Huber-robust).
         """
         dR = np.asarray(dR_N, float)
         cov = 0.5 * (np.asarray(cov_N, float) + np.asarray(cov_N, float).T)
-        shares = self._frame_cov[k] + dR @ self._frame_cov[j] @ dR.T
+        zero = np.zeros((3, 3))
+        shares = self._frame_cov.get(k, zero) + dR @ self._frame_cov.get(j, zero) @ dR.T
         m, V = np.linalg.eigh(cov)
         iso = np.diag(1.0 / np.sqrt(m)) @ V.T  # whitening of cov
         rm, rV = np.linalg.eigh(iso @ (cov - shares) @ iso.T)
@@ -235,7 +255,9 @@ class AttitudeSmoother:
         base = gtsam.noiseModel.Gaussian.Covariance(0.5 * (resid + resid.T))
         noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(self.settings.huber_k), base)
         # B_jᵀ B_k = R_NT(j) R_NT(k)ᵀ = dR_Nᵀ; its right error is the (negated) left error of dR_N
-        self._graph.add(gtsam.BetweenFactorRot3(B(j), B(k), _rot(dR.T), noise))
+        kj = B(j) if j in self._frame_cov else Y(j)
+        kk = B(k) if k in self._frame_cov else Y(k)
+        self._graph.add(gtsam.BetweenFactorRot3(kj, kk, _rot(dR.T), noise))
 
     def update(self) -> None:
         """One iSAM2 step with the factors and variables added since the last."""
@@ -243,14 +265,13 @@ class AttitudeSmoother:
         self._all.push_back(self._graph)
         self._graph = gtsam.NonlinearFactorGraph()
         self._values = gtsam.Values()
-        self._est = self._isam.calculateEstimate()
 
     # ---------------------------------------------------------------- reading
     def estimate(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """``(R_NT (3, 3), ω_T (3,))`` at epoch ``k`` (the last update's estimate)."""
         if self._values.exists(Y(k)):
             return self._values.atRot3(Y(k)).matrix().T, self._values.atVector(W(k))
-        return self._est.atRot3(Y(k)).matrix().T, self._est.atVector(W(k))
+        return self._isam.calculateEstimateRot3(Y(k)).matrix().T, self._isam.calculateEstimateVector(W(k))
 
     def covariance_T(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Marginal covariances at epoch ``k``: body-frame attitude error (rad²) and rate (rad²/s²)."""
@@ -269,8 +290,10 @@ class AttitudeSmoother:
         """
         params = gtsam.LevenbergMarquardtParams()
         params.setMaxIterations(50)
-        res = gtsam.LevenbergMarquardtOptimizer(self._all, self._est, params).optimize()
+        res = gtsam.LevenbergMarquardtOptimizer(self._all, self._isam.calculateEstimate(), params).optimize()
         T = self.n_epochs
         R = np.stack([res.atRot3(Y(k)).matrix().T for k in range(T)])
         w = np.stack([res.atVector(W(k)) for k in range(T)])
+        if not self.settings.estimate_inertia:
+            return R, w, self.inertia()
         return R, w, InertiaShape(R_TP=res.atRot3(A(0)).matrix(), log_ratios=res.atVector(L(0)))

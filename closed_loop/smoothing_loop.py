@@ -179,7 +179,7 @@ class SmoothingLoop:
             reasons.append(SET_CHANGED)
         if model is not None:
             R_now, _ = sm.estimate(k)
-            cands = model.candidates(k, R_NH[k], r_CT_H, R_now, lambda j: sm.estimate(j)[0],
+            cands = model.candidates(k, R_NH[k], r_CT_H, R_now, lambda j: sm.estimate(j)[0], t_s=sm.times[k],
                                      everything=reacquire, exclude=(k - 1,))
             for kf, angle in cands:
                 mode = "descriptors" if angle <= model.settings.viewpoint_window_deg else "geometry"
@@ -209,6 +209,7 @@ class SmoothingLoop:
             links.append((j, inc, mode))
             rec.n_links[k] += 1
             if mode != "previous":
+                model.linked(j, sm.times[k])
                 best_kf = max(best_kf, inc.n_inliers)
                 rec.closure[k] = rec.closure[k] or mode
             else:

@@ -42,12 +42,16 @@ class ModelSettings:
     reacquire_after_s : float
         After this long without an accepted registration the target is re-acquired: every
         keyframe is tried, by descriptors within the window and by geometry beyond it.
+    relink_after_s : float
+        A keyframe closes the loop at most once in this time: closures to one keyframe share its
+        points' noise, which the graph would otherwise count again at every closure.
     """
 
     viewpoint_window_deg: float = 30.0
     max_links: int = 2
     new_keyframe_overlap: float = 0.5
     reacquire_after_s: float = 5.0
+    relink_after_s: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -85,6 +89,16 @@ class TargetModel:
 
     settings: ModelSettings = field(default_factory=ModelSettings)
     keyframes: list[Keyframe] = field(default_factory=list)
+    last_linked_s: dict[int, float] = field(default_factory=dict)
+
+    def linked(self, epoch: int, t_s: float) -> None:
+        """Record that the keyframe of ``epoch`` closed the loop at ``t_s``."""
+        self.last_linked_s[epoch] = float(t_s)
+
+    def resting(self, epoch: int, t_s: float) -> bool:
+        """The keyframe of ``epoch`` closed the loop less than ``relink_after_s`` ago."""
+        last = self.last_linked_s.get(epoch)
+        return last is not None and t_s - last < self.settings.relink_after_s
 
     def add(self, epoch: int, frame: Frame, R_NH: np.ndarray, r_CT_H: np.ndarray) -> Keyframe:
         """Keep ``frame`` as a keyframe; ``r_CT_H (n, 3)`` are the active observers' positions."""
@@ -95,7 +109,7 @@ class TargetModel:
         return kf
 
     def candidates(self, epoch: int, R_NH: np.ndarray, r_CT_H: np.ndarray, R_NT_now: np.ndarray,
-                   R_NT_of: Callable[[int], np.ndarray], *, everything: bool = False,
+                   R_NT_of: Callable[[int], np.ndarray], *, t_s: float, everything: bool = False,
                    exclude: tuple[int, ...] = ()) -> list[tuple[Keyframe, float]]:
         """Keyframes to register the epoch to, with their change of viewpoint (deg).
 
@@ -109,6 +123,8 @@ class TargetModel:
             Predicted attitude at the epoch.
         R_NT_of : callable
             The current attitude estimate of a keyframe's epoch.
+        t_s : float
+            Time of the epoch (keyframes that closed the loop within ``relink_after_s`` rest).
         everything : bool
             Re-acquisition: every keyframe, nearest viewpoint first.
         exclude : tuple of int
@@ -124,7 +140,8 @@ class TargetModel:
         d = u.sum(axis=0)
         now_T = viewing_direction_T(d / np.linalg.norm(d), R_NH, R_NT_now)
         scored = [(kf, _angle_deg(viewing_direction_T(kf.dir_H, kf.R_NH, R_NT_of(kf.epoch)), now_T))
-                  for kf in self.keyframes if kf.epoch != epoch and kf.epoch not in exclude]
+                  for kf in self.keyframes
+                  if kf.epoch != epoch and kf.epoch not in exclude and not self.resting(kf.epoch, t_s)]
         if everything:
             return sorted(scored, key=lambda s: s[1])
         near = [s for s in scored if s[1] <= self.settings.viewpoint_window_deg]

@@ -72,10 +72,19 @@ class InertiaShape:
         return m / m[0]
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross products of ``(M, 3)`` arrays (``np.cross`` without its axis handling)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def _euler_rates(w: np.ndarray, J: np.ndarray, J_inv: np.ndarray) -> np.ndarray:
     """``ω̇ = J⁻¹(−ω × Jω)`` for ``(M, 3)`` rates and ``(M, 3, 3)`` tensors (003 eq 27)."""
-    Jw = np.einsum("mij,mj->mi", J, w)
-    return np.einsum("mij,mj->mi", J_inv, -np.cross(w, Jw))
+    Jw = (J @ w[:, :, None])[:, :, 0]
+    return -(J_inv @ _cross(w, Jw)[:, :, None])[:, :, 0]
 
 
 def _exp_so3(v: np.ndarray) -> np.ndarray:
@@ -122,7 +131,7 @@ def propagate_batch(R_NT: np.ndarray, omega_T: np.ndarray, J_T: np.ndarray, dt_s
         w4 = w + h * k3
         k4 = _euler_rates(w4, J_T, J_inv)
         # rotation vector over the step: Simpson's rule on the stage rates plus the coning term
-        theta = (h / 6.0) * (w + 2.0 * (w2 + w3) + w4) + (h * h / 12.0) * np.cross(w, w4)
+        theta = (h / 6.0) * (w + 2.0 * (w2 + w3) + w4) + (h * h / 12.0) * _cross(w, w4)
         R = R @ _exp_so3(theta)
         w = w + (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
     return R, w
@@ -136,68 +145,90 @@ def rotation_error_T(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
 
 
 def _log_batch(R: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
+    """Rotation vectors of ``(M, 3, 3)`` rotations near the identity (angles below π/2 to full
+    precision: the factor's residuals), by ``θ/(2 sin θ) (R − Rᵀ)^∨``."""
+    v = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], -1)
+    s2 = np.linalg.norm(v, axis=-1)  # 2 sin θ
+    c = np.clip(0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0), -1.0, 1.0)
+    th = np.arctan2(0.5 * s2, c)
+    f = np.where(s2 > 1e-12, th / np.where(s2 > 1e-12, s2, 1.0), 0.5)
+    return v * f[:, None]
 
-    return Rotation.from_matrix(R).as_rotvec()
+
+_EXP_MINUS_H = _exp_so3(-_H * np.eye(3))
+_EXP_PLUS_H = _exp_so3(_H * np.eye(3))
 
 
-def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, int, int, int, int, int], dt_s: float, *,
-                       n_substeps: int = 1) -> gtsam.CustomFactor:
+def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, ...], dt_s: float, *,
+                       n_substeps: int = 1, J_T: np.ndarray | None = None) -> gtsam.CustomFactor:
     """The dynamics factor between two epochs (module docstring).
 
     Parameters
     ----------
     noise : gtsam.noiseModel.Base
         6-dimensional noise of ``[attitude (rad), rate (rad/s)]``.
-    keys : (Y_k, ω_k, Y_{k+1}, ω_{k+1}, R_TP, l)
-        gtsam keys of the two epochs' states and of the inertia shape.
+    keys : (Y_k, ω_k, Y_{k+1}, ω_{k+1}, R_TP, l) or (Y_k, ω_k, Y_{k+1}, ω_{k+1})
+        gtsam keys of the two epochs' states and of the inertia shape (without it: ``J_T`` given).
     dt_s : float
         Time between the epochs, s.
     n_substeps : int
         RK4 sub-steps.
+    J_T : ndarray (3, 3), optional
+        A known inertia tensor (then ``keys`` has four entries).
 
     Returns
     -------
     gtsam.CustomFactor
     """
     eye = np.eye(3)
+    known = J_T is not None
+    if known != (len(keys) == 4) or (not known and len(keys) != 6):
+        raise ValueError(f"keys: expected 4 keys with J_T or 6 without, got {len(keys)}")
+    J_known = None if J_T is None else np.asarray(J_T, float)
 
     def error(this: gtsam.CustomFactor, values: gtsam.Values, H: list[np.ndarray] | None) -> np.ndarray:
-        kY0, kw0, kY1, kw1, kA, kl = (this.keys()[i] for i in range(6))
-        R0 = values.atRot3(kY0).matrix().T
-        w0 = values.atVector(kw0)
-        R1 = values.atRot3(kY1).matrix().T
-        w1 = values.atVector(kw1)
-        A = values.atRot3(kA).matrix()
-        lr = values.atVector(kl)
+        ks = this.keys()
+        R0 = values.atRot3(ks[0]).matrix().T
+        w0 = values.atVector(ks[1])
+        R1 = values.atRot3(ks[2]).matrix().T
+        w1 = values.atVector(ks[3])
         want = H is not None
-        M = 12 if want else 1
-        Rb = np.broadcast_to(R0, (M, 3, 3)).copy()
-        wb = np.broadcast_to(w0, (M, 3)).copy()
-        Ab = np.broadcast_to(A, (M, 3, 3)).copy()
-        lb = np.broadcast_to(lr, (M, 2)).copy()
+        M = (7 if known else 12) if want else 1
+        Rb = np.empty((M, 3, 3))
+        Rb[:] = R0
+        wb = np.empty((M, 3))
+        wb[:] = w0
         if want:
             # Y₀ ⊕ ε = Y₀ Exp(ε)  ⇒  R_NT ← Exp(−ε) R_NT
-            Rb[1:4] = _exp_so3(-_H * eye) @ R0
+            Rb[1:4] = _EXP_MINUS_H @ R0
             wb[4:7] += _H * eye
-            Ab[7:10] = A @ _exp_so3(_H * eye)
-            lb[10:12] += _H * np.eye(2)
-        d = np.exp(lb)
-        diag = np.concatenate([np.ones((M, 1)), d], -1)
-        J = np.einsum("mij,mj,mkj->mik", Ab, diag, Ab)
+        if known:
+            J = np.broadcast_to(J_known, (M, 3, 3))
+        else:
+            A = values.atRot3(ks[4]).matrix()
+            Ab = np.empty((M, 3, 3))
+            Ab[:] = A
+            lb = np.empty((M, 2))
+            lb[:] = values.atVector(ks[5])
+            if want:
+                Ab[7:10] = A @ _EXP_PLUS_H
+                lb[10:12] += _H * np.eye(2)
+            diag = np.concatenate([np.ones((M, 1)), np.exp(lb)], -1)
+            J = (Ab * diag[:, None, :]) @ np.swapaxes(Ab, 1, 2)
         Rp, wp = propagate_batch(Rb, wb, J, dt_s, n_substeps)
         r_att = _log_batch(np.swapaxes(Rp, -1, -2) @ R1)
         r = np.concatenate([r_att, w1[None] - wp], -1)
         if want:
             D = (r[1:] - r[0]).T / _H  # (6, 11)
             # derivatives with respect to the later epoch: R₁ ← Exp(−ε) R₁, i.e. body perturbation −R₁ᵀ ε
-            r_eps = _log_batch(np.swapaxes(Rp[:1], -1, -2) @ _exp_so3(-_H * eye) @ R1)
+            r_eps = _log_batch(np.swapaxes(Rp[:1], -1, -2) @ _EXP_MINUS_H @ R1)
             H[0] = D[:, 0:3]
             H[1] = D[:, 3:6]
             H[2] = np.vstack([(r_eps - r_att[0]).T / _H, np.zeros((3, 3))])
             H[3] = np.vstack([np.zeros((3, 3)), eye])
-            H[4] = D[:, 6:9]
-            H[5] = D[:, 9:11]
+            if not known:
+                H[4] = D[:, 6:9]
+                H[5] = D[:, 9:11]
         return r[0]
 
     return gtsam.CustomFactor(noise, list(keys), error)
