@@ -15,10 +15,12 @@ fraction is the exact coverage of a straight edge crossing its footprint on the 
 distribution of a box's projection on the edge normal: the sum of two uniform widths).  Reflectance
 multiplies illumination, so the model amplitude of a pixel is
 
-``A(u, v) = B(u, v) · (1 − k · coverage(u, v))``,   ``B = b₀ + b_u (u − u₀) + b_v (v − v₀)``
+``A(u, v) = B(u, v) · (1 − k · coverage(u, v))``
 
-with the plate's local brightness ``B`` (linear: the ``cos θ / d²`` fall-off over the window) and the
-contrast ``k = 1 − ρ_dot / ρ_plate``.  The six parameters ``(u_c, v_c, b₀, b_u, b_v, k)`` are fitted
+with the plate's local brightness ``B = (b₀ + b_u Δu + b_v Δv) · g / g₀``, where ``g = cos θ / ρ²`` is the
+fall-off of the camera's co-located illumination on the Lambertian plate plane (``g₀`` at the
+reference pixel) and the linear term takes what that model leaves, and the contrast
+``k = 1 − ρ_dot / ρ_plate``.  The six parameters ``(u_c, v_c, b₀, b_u, b_v, k)`` are fitted
 by weighted least squares (``scipy.optimize.least_squares``, residuals divided by the per-pixel
 amplitude noise ``σ_A`` of the camera model), which is the maximum-likelihood estimate under the
 Gaussian phasor noise of :mod:`vision.tof`; :func:`dot_centre_fisher` gives the Cramér–Rao bound
@@ -62,6 +64,15 @@ def _coverage(uc: float, vc: float, U: np.ndarray, V: np.ndarray, camera: TofCam
     wu = np.abs(t / fx * (mx - md * n[0] / nd)) / sub
     wv = np.abs(t / fy * (my - md * n[1] / nd)) / sub
     return box_edge_coverage(radius_m - dist, wu, wv)
+
+
+def _illumination(U: np.ndarray, V: np.ndarray, camera: TofCamera, n: np.ndarray, h: float) -> np.ndarray:
+    """``cos θ / ρ²`` of the plate seen along the rays of ``(U, V)``: the fall-off of a co-located source on a
+    Lambertian plane (the amplitude model of :meth:`vision.tof.TofCamera.signal_amplitude_dn`)."""
+    dx, dy = (U - camera.cx_px) / camera.fx_px, (V - camera.cy_px) / camera.fy_px
+    nd = n[0] * dx + n[1] * dy + n[2]
+    norm2 = dx**2 + dy**2 + 1.0
+    return np.abs(nd) * nd**2 / (h**2 * norm2**1.5)                     # |n·d|/|d| / (h/(n·d))² / |d|²
 
 
 def dot_model_amplitude(params: np.ndarray, u_px: np.ndarray, v_px: np.ndarray, camera: TofCamera,
@@ -109,12 +120,14 @@ def dot_model_jacobian(params: np.ndarray, u_px: np.ndarray, v_px: np.ndarray, c
     geo = (U, V, camera, n, float(plane_h_m), float(radius_m), int(sub))
     cover = _coverage(uc, vc, *geo)
     gu, gv = U - ref_uv_px[0], V - ref_uv_px[1]
-    B = b0 + bu * gu + bv * gv
+    shade = _illumination(U, V, camera, n, float(plane_h_m)) / _illumination(
+        np.asarray(ref_uv_px[0], float), np.asarray(ref_uv_px[1], float), camera, n, float(plane_h_m))
+    B = (b0 + bu * gu + bv * gv) * shade
     if value_only:
         return (B * (1.0 - k * cover)).mean(axis=1)
     dc_du = (_coverage(uc + step_px, vc, *geo) - _coverage(uc - step_px, vc, *geo)) / (2 * step_px)
     dc_dv = (_coverage(uc, vc + step_px, *geo) - _coverage(uc, vc - step_px, *geo)) / (2 * step_px)
-    one = 1.0 - k * cover
+    one = (1.0 - k * cover) * shade
     return np.column_stack([(-k * B * dc_du).mean(1), (-k * B * dc_dv).mean(1), one.mean(1), (gu * one).mean(1),
                             (gv * one).mean(1), (-B * cover).mean(1)])
 

@@ -253,7 +253,7 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     accepted when at least one pixel reaches the strict thresholds ``I ≤ I_peak`` and
     ``J ≥ J_peak`` (hysteresis, flag P000-4), the pixel count lies in
     ``[area_min_frac, area_max_frac] × π (r f / ρ)²`` and the eccentricity is below
-    ``max_eccentricity`` → contrast-weighted centroid (P000-5) and range (eq 12) → eq (5).
+    ``max_eccentricity``, and the component does not touch the image border → contrast-weighted centroid (P000-5) and range (eq 12) → eq (5).
 
     Parameters
     ----------
@@ -355,8 +355,11 @@ def extract_markers(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
     lam_max, lam_min = tr / 2 + disc, np.maximum(tr / 2 - disc, 0.0)
     ecc = np.sqrt(1.0 - lam_min / np.maximum(lam_max, 1e-12))
     area_pred = np.pi * (r_dot * f_mean / med_r) ** 2
+    # a dot cut by the image border has neither its centroid nor its whole edge: not a key point
+    inside = ((np.minimum.reduceat(pu, starts) > 0) & (np.maximum.reduceat(pu, starts) < amp.shape[1] - 1)
+              & (np.minimum.reduceat(pv, starts) > 0) & (np.maximum.reduceat(pv, starts) < amp.shape[0] - 1))
     ok = ((min_i <= i_peak) & (max_j >= j_peak) & (count >= s.area_min_frac * area_pred)
-          & (count <= s.area_max_frac * area_pred) & (ecc <= s.max_eccentricity))
+          & (count <= s.area_max_frac * area_pred) & (ecc <= s.max_eccentricity) & inside)
     accepted = idx[ok]
     if accepted.size == 0:
         return _empty_detections(_why_none(frame, camera, dot_px) or "no marker candidates", thr)

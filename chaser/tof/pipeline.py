@@ -85,6 +85,20 @@ def _not_found(failure_reason: str, det: MarkerDetections, labels: np.ndarray | 
                          int((lab >= 0).sum()), float("nan"), det)
 
 
+def _keep_first_fits(det: MarkerDetections, det2: MarkerDetections) -> MarkerDetections:
+    """``det2``, with the key points whose fit held in ``det`` but not in ``det2`` taken from ``det``
+    (a poor first pose, e.g. from three markers, gives a plate plane that a dot's image rejects)."""
+    back = det.centre_fitted & ~det2.centre_fitted
+    if not back.any():
+        return det2
+    arrays = {}
+    for name in ("uv_px", "range_m", "points_S", "range_sigma_m", "centroid_sigma_px", "centre_cov_px2", "centre_fitted"):
+        a = getattr(det2, name).copy()
+        a[back] = getattr(det, name)[back]
+        arrays[name] = a
+    return replace(det2, **arrays)
+
+
 def estimate_tof_pose(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *, matcher: str = "mrf",
                       match_settings: MatchSettings | None = None,
                       extraction: ExtractionSettings | None = None, verify: bool = True,
@@ -169,7 +183,7 @@ def estimate_tof_pose(frame: TofFrame, camera: TofCamera, plate: MarkerPlate, *,
                                        plate_plane_S=(R_SC[:, 2], float(R_SC[:, 2] @ r_CS_S)))
                 if not (det2.ok and det2.n == det.n and np.all(np.abs(det2.uv_px - det.uv_px) < 1.0)):
                     break
-                det = det2
+                det = _keep_first_fits(det, det2)
             uv, rho = det.uv_px[sel], det.range_m[sel]
             s_px, s_rho = np.maximum(det.centroid_sigma_px[sel], 1e-5), np.maximum(det.range_sigma_m[sel], 1e-5)
             R_SC, r_CS_S = ml_pose_refinement(R_SC, r_CS_S, model[lab], uv, rho, camera, s_px, s_rho)

@@ -4,9 +4,9 @@ One cell is one (``target.distance_m``, ``target.off_boresight_deg``) point; eac
 SR4000 frame (:func:`vision.tof.render_tof_frame`) of the plate at ``R_true = Rot(a_φ, θ) R(attitude_deg)``
 with ``θ`` the off-boresight angle and ``a_φ = (cos φ, sin φ, 0)_S`` an axis in the image plane at a
 random azimuth ``φ`` per trial, and runs :func:`chaser.tof.estimate_tof_pose`.  Per trial: attitude
-and position error against the truth, the Cramér–Rao bound of that pose
-(:func:`chaser.tof.bound.tof_pose_bound` with :func:`chaser.tof.bound.sr4000_marker_noise`) and the
-pipeline's ``failure_reason``; a pose more than :data:`WRONG_MATCH_DEG` off the truth is a failure
+and position error against the truth, the Cramér–Rao bound of that pose from the markers it was
+made from (:func:`chaser.tof.bound.tof_pose_bound` with :func:`chaser.tof.bound.sr4000_marker_noise`;
+NaN for a frame not found) and the pipeline's ``failure_reason``; a pose more than :data:`WRONG_MATCH_DEG` off the truth is a failure
 "wrong match".  :func:`envelope_figures` draws the maps from the stored sweep.
 """
 
@@ -73,9 +73,6 @@ def envelope_cell(cfg: Config, seeds: list[np.random.SeedSequence]) -> dict[str,
         R_true = _rot(np.array([np.cos(phi), np.sin(phi), 0.0]), tilt) @ _R_from_pyr_deg(cfg.target.attitude_deg)
         mn = sr4000_marker_noise(camera, plate, R_true, r_true, ambient_dn=cfg.camera.ambient_dn,
                                   centre_estimator=cfg.pipeline.centre_estimator)
-        b = tof_pose_bound(R_true, r_true, plate.markers_C, camera, mn.sigma_px, mn.sigma_range_m)
-        out["bound_attitude_deg"][t] = b.attitude_sigma_deg
-        out["bound_position_mm"][t] = b.position_sigma_m * 1e3
         frame = render_tof_frame(camera, target, R_true, r_true, rng=rng, supersample=cfg.camera.supersample,
                                  ambient_dn=cfg.camera.ambient_dn)
         res = estimate_tof_pose(frame, camera, plate, matcher=cfg.pipeline.matcher,
@@ -94,6 +91,10 @@ def envelope_cell(cfg: Config, seeds: list[np.random.SeedSequence]) -> dict[str,
             reason[t] = f"wrong match (attitude error {att:.1f} deg > {WRONG_MATCH_DEG:g} deg)"
             continue
         out["attitude_error_deg"][t] = att
+        lab = res.labels[res.labels >= 0]                  # the bound of the markers the pose was made from
+        b = tof_pose_bound(R_true, r_true, plate.markers_C[lab], camera, mn.sigma_px[lab], mn.sigma_range_m[lab])
+        out["bound_attitude_deg"][t] = b.attitude_sigma_deg
+        out["bound_position_mm"][t] = b.position_sigma_m * 1e3
         out["position_error_mm"][t] = float(np.linalg.norm(res.r_CS_S - r_true) * 1e3)
     out["failure_reason"] = reason
     return out
