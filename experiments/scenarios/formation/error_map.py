@@ -72,13 +72,15 @@ def _same_surface_points(prev: Observation, curr: Observation, tol_px: float = 2
 
 def _crlb_deg(prev: Frame, curr: Frame, q_HT: np.ndarray, dq_H: np.ndarray, T_CW: np.ndarray) -> float:
     """Cramér–Rao bound of one increment for the surface points tracked at both epochs, each epoch
-    with the views that see the point then (``visible`` and ``visible_next``)."""
+    with the views that see the point then (``visible`` and ``visible_next``) and each keypoint's σ
+    (:attr:`vision.observation.Observation.sigma_uv_px`: the configured σ, or the calibrated σ per
+    keypoint size)."""
     ip, ic = _same_surface_points(prev.obs, curr.obs)
     if ip.size < 3:
         return float("nan")
     X_W = prev.obs.X_T_true[ip] @ matrix_from_quat(q_HT).T
-    b = attitude_increment_crlb(X_W, prev.obs.K, T_CW, pixel_sigma_px=prev.obs.pixel_sigma_px,
-                                pixel_sigma_px_next=curr.obs.pixel_sigma_px, visible=prev.obs.seen[ip],
+    b = attitude_increment_crlb(X_W, prev.obs.K, T_CW, pixel_sigma_px=prev.obs.sigma_uv_px[ip],
+                                pixel_sigma_px_next=curr.obs.sigma_uv_px[ic], visible=prev.obs.seen[ip],
                                 visible_next=curr.obs.seen[ic], R_delta=matrix_from_quat(dq_H))
     return float(np.degrees(b.rms_angle_rad)) if bool(b.ok) else float("nan")
 
