@@ -123,7 +123,8 @@ class Registrar(ABC):
     evidence: Evidence = Evidence()
 
     @abstractmethod
-    def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator) -> RigidRegistration:
+    def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator,
+            R0: np.ndarray | None = None) -> RigidRegistration:
         """Fit ``Q ≈ R P + t`` to the matched points.
 
         Parameters
@@ -132,6 +133,9 @@ class Registrar(ABC):
             Associated points of the two epochs, with their covariances and weights.
         rng : numpy.random.Generator
             The registration stream (RANSAC draws); deterministic fits ignore it.
+        R0 : ndarray (3, 3), optional
+            A predicted rotation; an iterative fit may start from it instead of a random search
+            (and falls back to the search when the start fails).
 
         Returns
         -------
@@ -141,7 +145,8 @@ class Registrar(ABC):
         """
 
     def register(self, prev: Frame, curr: Frame, *, rng: np.random.Generator,
-                 with_covariance: bool = True, view_agnostic: bool = False) -> RegistrationIncrement:
+                 with_covariance: bool = True, view_agnostic: bool = False,
+                 R0: np.ndarray | None = None) -> RegistrationIncrement:
         """The attitude increment from ``prev`` to ``curr``.
 
         Parameters
@@ -157,6 +162,8 @@ class Registrar(ABC):
             Associate the tracks by descriptor whatever cameras saw them (two epochs seen by
             different observers or different numbers of them: a keyframe of the target model);
             default: view by view (003 §1.5, the same cameras at both epochs).
+        R0 : ndarray (3, 3), optional
+            The predicted increment, passed to :meth:`fit`.
 
         Returns
         -------
@@ -182,7 +189,7 @@ class Registrar(ABC):
         ip, iq = assoc.idx_prev, assoc.idx_next
         pairs = MatchedClouds(P_H=prev.tri.X_W[ip], Q_H=curr.tri.X_W[iq], cov_P_H=prev.tri.cov_W[ip],
                               cov_Q_H=curr.tri.cov_W[iq], weight_P=prev.tri.weight[ip], weight_Q=curr.tri.weight[iq])
-        reg = self.fit(pairs, rng=rng)
+        reg = self.fit(pairs, rng=rng, R0=R0)
         if not bool(reg.ok):
             return RegistrationIncrement.failed(f"registration: {reg.failure_reason}", k)
         why = check_evidence(pairs.P_H, pairs.Q_H, pairs.cov_P_H, pairs.cov_Q_H, reg.R, reg.t, reg.inliers,
@@ -204,8 +211,9 @@ class KabschRegistrar(Registrar):
     ``1/(W_ρ + ε₀)``, flag P003-4, docs/papers.md#p003-4).
     """
 
-    def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator) -> RigidRegistration:
-        """Weighted Kabsch fit (:func:`reconstruction.registration.fit_rigid`); ``rng`` is unused."""
+    def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator,
+            R0: np.ndarray | None = None) -> RigidRegistration:
+        """Weighted Kabsch fit (:func:`reconstruction.registration.fit_rigid`); ``rng`` and ``R0`` are unused."""
         w = 1.0 / (pairs.weight_P ** -1 + pairs.weight_Q ** -1)
         return fit_rigid(pairs.P_H, pairs.Q_H, weights=w)
 
@@ -215,8 +223,9 @@ class RobustKabschRegistrar(Registrar):
     """Kabsch after a 3-point RANSAC with the covariance chi-square gate (flag P003-6's check,
     docs/papers.md#p003-6; :func:`reconstruction.registration.fit_rigid_robust`)."""
 
-    def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator) -> RigidRegistration:
-        """RANSAC on the covariance-gated residuals, then a Kabsch fit of the inliers."""
+    def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator,
+            R0: np.ndarray | None = None) -> RigidRegistration:
+        """RANSAC on the covariance-gated residuals, then a Kabsch fit of the inliers (``R0`` unused)."""
         return fit_rigid_robust(pairs.P_H, pairs.Q_H, cov_P=pairs.cov_P_H, cov_Q=pairs.cov_Q_H, rng=rng)
 
 
@@ -228,8 +237,15 @@ class MLRegistrar(Registrar):
     and gives the increment's covariance itself.
     """
 
-    def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator) -> RigidRegistration:
-        """Maximum-likelihood fit with the points' full covariances (robust start drawn from ``rng``)."""
+    def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator,
+            R0: np.ndarray | None = None) -> RigidRegistration:
+        """Maximum-likelihood fit with the points' full covariances: from ``R0`` (the translation the median of
+        the pairs' ``Q − R0 P``) when given and successful, else from a robust start drawn from ``rng``."""
+        if R0 is not None:
+            t0 = np.nanmedian(pairs.Q_H - pairs.P_H @ R0.T, axis=0)  # the pairs' translations, robustly
+            reg = fit_rigid_ml(pairs.P_H, pairs.Q_H, pairs.cov_P_H, pairs.cov_Q_H, R0=R0, t0=t0, rng=rng)
+            if bool(reg.ok):
+                return reg
         return fit_rigid_ml(pairs.P_H, pairs.Q_H, pairs.cov_P_H, pairs.cov_Q_H, rng=rng)
 
 

@@ -62,7 +62,10 @@ class SmootherSettings:
     huber_k : float
         Huber threshold (whitened units) of the relative-rotation factors.
     relinearize_threshold : float
-        iSAM2 relinearisation threshold.
+        iSAM2 relinearisation threshold of the attitudes (rad) and the rates (rad/s).
+    relinearize_threshold_inertia : float
+        The same for the inertia shape (rad, log-ratio): every dynamics factor depends on it, so
+        a finer threshold relinearises the whole graph at each update.
     relinearize_skip : int
         iSAM2 checks for relinearisation every this many updates.
     """
@@ -75,7 +78,8 @@ class SmootherSettings:
     gate_probability: float = 0.999
     huber_k: float = 3.0
     relinearize_threshold: float = 1e-5
-    relinearize_skip: int = 5
+    relinearize_threshold_inertia: float = 1e-3
+    relinearize_skip: int = 10
 
 
 @dataclass(frozen=True)
@@ -105,7 +109,8 @@ class AttitudeSmoother:
 
     Build it with the inertia tensor used as the prior's mean (or the known tensor) and
     :meth:`start` it at the first epoch; then for each new epoch :meth:`add_epoch`, gate and add
-    the registrations (:meth:`add_relative`) and :meth:`update`.
+    the registrations (:meth:`add_relative`) and :meth:`update` (one update per epoch: the gate
+    uses the predicted covariance of the new epoch).
     """
 
     J_prior_kg_m2: np.ndarray
@@ -114,8 +119,9 @@ class AttitudeSmoother:
     def __post_init__(self) -> None:
         p = gtsam.ISAM2Params()
         thr = gtsam.ISAM2ThresholdMap()
-        for ch, dim in (("y", 3), ("b", 3), ("w", 3), ("a", 3), ("l", 2)):
-            thr.insert((ch, np.full(dim, self.settings.relinearize_threshold)))
+        fine, coarse = self.settings.relinearize_threshold, self.settings.relinearize_threshold_inertia
+        for ch, dim, th in (("y", 3, fine), ("b", 3, fine), ("w", 3, fine), ("a", 3, coarse), ("l", 2, coarse)):
+            thr.insert((ch, np.full(dim, th)))
         p.setRelinearizeThreshold(thr)
         p.relinearizeSkip = int(self.settings.relinearize_skip)
         p.setFactorization("QR")
@@ -128,6 +134,7 @@ class AttitudeSmoother:
         self._values = gtsam.Values()
         self._all = gtsam.NonlinearFactorGraph()
         self._t: list[float] = []
+        self._pending_cov: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._frame_cov: dict[int, np.ndarray] = {}
 
     # ---------------------------------------------------------------- building
@@ -204,6 +211,15 @@ class AttitudeSmoother:
         Rp, wp = propagate_batch(R[None], w[None], self.inertia().J_T[None], dt, n_sub)
         self._values.insert(Y(k), _rot(Rp[0].T))
         self._values.insert(W(k), wp[0])
+        # predicted covariance of the new attitude for the gate before the next update: the last
+        # epoch's plus its rate uncertainty carried over dt (cross terms dropped)
+        cY = self._pending_cov.get(k - 1)
+        if cY is None:
+            cY = self._isam.marginalCovariance(Y(k - 1))
+            cW = self._isam.marginalCovariance(W(k - 1))
+        else:
+            cY, cW = cY
+        self._pending_cov = {k: (cY + dt * dt * (R @ cW @ R.T), cW)}
         self._t.append(float(t_s))
         return k
 
@@ -217,13 +233,19 @@ class AttitudeSmoother:
         Rj, _ = self.estimate(j)
         dR_est = Rk @ Rj.T
         nu = gtsam.Rot3.Logmap(_rot(np.asarray(dR_N) @ dR_est.T))
-        S = np.asarray(cov_N) + self._isam.marginalCovariance(Y(k)) + dR_est @ self._isam.marginalCovariance(Y(j)) @ dR_est.T
+        S = np.asarray(cov_N) + self._marginal_Y(k) + dR_est @ self._marginal_Y(j) @ dR_est.T
         try:
             c2 = float(nu @ np.linalg.solve(S, nu))
         except np.linalg.LinAlgError:
             c2 = float("inf")
         thr = float(chi2.ppf(self.settings.gate_probability, 3))
         return GateResult(accepted=bool(np.isfinite(c2) and c2 <= thr), chi2=c2, threshold=thr)
+
+    def _marginal_Y(self, k: int) -> np.ndarray:
+        """Marginal covariance of ``Y_k`` (predicted when the epoch awaits its first update)."""
+        if k in self._pending_cov:
+            return self._pending_cov[k][0]
+        return self._isam.marginalCovariance(Y(k))
 
     def add_frame(self, k: int, cov_frame_N: np.ndarray) -> None:
         """The cloud orientation ``B_k`` of epoch ``k``'s frame, with its covariance (left, N, rad²); once per epoch."""
@@ -265,6 +287,7 @@ class AttitudeSmoother:
         self._all.push_back(self._graph)
         self._graph = gtsam.NonlinearFactorGraph()
         self._values = gtsam.Values()
+        self._pending_cov = {}
 
     # ---------------------------------------------------------------- reading
     def estimate(self, k: int) -> tuple[np.ndarray, np.ndarray]:

@@ -119,7 +119,6 @@ class SmoothingLoop:
         for k in range(T):
             if k > 0:
                 sm.add_epoch(float(t_s[k]))
-                sm.update()
             act = active[k]
             rec.active[k] = act
             why = "" if inactive_reason is None else str(inactive_reason[k])
@@ -149,11 +148,12 @@ class SmoothingLoop:
                                                       q_HT, reacquire, rng_register, rec)
                 if links:
                     last_link_s = float(t_s[k])
-                    sm.update()
                 elif reasons:
                     why = why or reasons[0]
                 if model is not None and model.wants(frame, best_kf):
                     model.add(k, frame, R_NH[k], r_H[act, k])
+            if k > 0:
+                sm.update()
             rec.ok[k] = rec.n_links[k] > 0
             rec.reason[k] = INITIAL_EPOCH if k == 0 else ("" if rec.ok[k] else (why or NO_LINK))
             R, w = sm.estimate(k)
@@ -191,7 +191,10 @@ class SmoothingLoop:
                 dR_H_pred = R_NH[k].T @ (Rk @ Rj.T) @ R_NH_j
                 inc = register_by_geometry(other, frame, dR_H_pred, rng=rng, evidence=self.registrar.evidence)
             else:
-                inc = self.registrar.register(other, frame, rng=rng, view_agnostic=mode != "previous")
+                Rj, _ = sm.estimate(j)
+                Rk, _ = sm.estimate(k)
+                inc = self.registrar.register(other, frame, rng=rng, view_agnostic=mode != "previous",
+                                              R0=R_NH[k].T @ (Rk @ Rj.T) @ R_NH_j)
             if mode == "previous":
                 rec.n_matches[k] = inc.n_matches
             if not inc.usable:

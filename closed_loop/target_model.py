@@ -45,6 +45,9 @@ class ModelSettings:
     relink_after_s : float
         A keyframe closes the loop at most once in this time: closures to one keyframe share its
         points' noise, which the graph would otherwise count again at every closure.
+    refresh_epochs : int
+        The keyframes' viewing directions on the target are recomputed from the smoother's
+        estimate every this many epochs.
     """
 
     viewpoint_window_deg: float = 30.0
@@ -52,6 +55,7 @@ class ModelSettings:
     new_keyframe_overlap: float = 0.5
     reacquire_after_s: float = 5.0
     relink_after_s: float = 10.0
+    refresh_epochs: int = 10
 
 
 @dataclass(frozen=True)
@@ -79,10 +83,6 @@ def viewing_direction_T(dir_H: np.ndarray, R_NH: np.ndarray, R_NT: np.ndarray) -
     return R_NT.T @ (R_NH @ dir_H)
 
 
-def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b)), float(a @ b))))
-
-
 @dataclass
 class TargetModel:
     """Keyframes of the target (module docstring)."""
@@ -90,6 +90,8 @@ class TargetModel:
     settings: ModelSettings = field(default_factory=ModelSettings)
     keyframes: list[Keyframe] = field(default_factory=list)
     last_linked_s: dict[int, float] = field(default_factory=dict)
+    _dir_T: dict[int, np.ndarray] = field(default_factory=dict, repr=False)
+    _refreshed_at: int = -(10**9)
 
     def linked(self, epoch: int, t_s: float) -> None:
         """Record that the keyframe of ``epoch`` closed the loop at ``t_s``."""
@@ -139,9 +141,18 @@ class TargetModel:
         u = r_CT_H / np.linalg.norm(r_CT_H, axis=-1, keepdims=True)
         d = u.sum(axis=0)
         now_T = viewing_direction_T(d / np.linalg.norm(d), R_NH, R_NT_now)
-        scored = [(kf, _angle_deg(viewing_direction_T(kf.dir_H, kf.R_NH, R_NT_of(kf.epoch)), now_T))
-                  for kf in self.keyframes
-                  if kf.epoch != epoch and kf.epoch not in exclude and not self.resting(kf.epoch, t_s)]
+        kfs = [kf for kf in self.keyframes
+               if kf.epoch != epoch and kf.epoch not in exclude and not self.resting(kf.epoch, t_s)]
+        if not kfs:
+            return []
+        # the keyframes' directions on the target, with their attitude estimates refreshed every
+        # ``refresh_epochs`` (the window is tens of degrees; the estimates move by hundredths)
+        if epoch - self._refreshed_at >= self.settings.refresh_epochs:
+            self._dir_T.clear()
+            self._refreshed_at = epoch
+        dirs = np.stack([self._keyframe_dir_T(kf, R_NT_of) for kf in kfs])
+        ang = np.degrees(np.arctan2(np.linalg.norm(np.cross(dirs, now_T), axis=-1), dirs @ now_T))
+        scored = list(zip(kfs, ang.tolist(), strict=True))
         if everything:
             return sorted(scored, key=lambda s: s[1])
         near = [s for s in scored if s[1] <= self.settings.viewpoint_window_deg]
@@ -152,6 +163,12 @@ class TargetModel:
         if nearest[0].epoch != picks[0][0].epoch:
             picks.append(nearest)
         return picks[: self.settings.max_links]
+
+    def _keyframe_dir_T(self, kf: Keyframe, R_NT_of: Callable[[int], np.ndarray]) -> np.ndarray:
+        d = self._dir_T.get(kf.epoch)
+        if d is None:
+            d = self._dir_T[kf.epoch] = viewing_direction_T(kf.dir_H, kf.R_NH, R_NT_of(kf.epoch))
+        return d
 
     def wants(self, frame: Frame, best_inliers: int) -> bool:
         """Whether the frame brings new information: no keyframe kept most of its points."""

@@ -31,7 +31,7 @@ from closed_loop import (
     plan_observers,
     tumbling_target,
 )
-from closed_loop.smoothing_loop import SmoothingLoop, SmootherStart
+from closed_loop.smoothing_loop import SmootherStart, SmoothingLoop
 from experiments.scenarios.formation.config import Config
 from experiments.scenarios.formation.parts import (
     criterion,
