@@ -4,21 +4,24 @@ Same surface features and visibility tests as :mod:`vision.geometric` (in the im
 camera, lit side, unoccluded, unshadowed), then, with the statistics of :mod:`vision.calibration`
 measured on rendered images:
 
-1. **Detection**: feature f is detected in view i when ``u_f < ρ(z/f, view angle, Sun incidence) / ρ_F``,
-   the measured keypoint density over the features' density ``ρ_F = N / area``.  ``u_f`` is one
+1. **Detection**: feature f is detected in view i when ``u_f < ρ(z/f, view angle, Sun incidence,
+   material) / ρ_F``, the measured keypoint density over the features' density ``ρ_F = N / area``.  ``u_f`` is one
    uniform per feature for the whole call, so detections are correlated across views and persist
    across epochs, as a textured spot is detected again when the view barely changes.
 2. **Matching across views**: a pair of views (i, j) that both detect f matches it with the measured
    survival ``S(z/f, angle between the cameras)`` through a Gaussian copula whose correlation
    between pairs reproduces the measured ratio of three-view to two-view tracks; tracks are the
-   connected components of the pair matches with at least ``min_views`` views.
+   connected components of the pair matches with at least ``min_views`` views.  The matches are
+   drawn afresh every epoch: on rendered images about half of the tracks of one epoch are tracks
+   again 0.9° later (the ratio test is decided anew in every image pair), close to ``S``.
 3. **Localisation**: every (track, view) gets a keypoint size (quantile ``v_f`` of the measured size
    distribution of tracked keypoints at its image scale, one ``v_f`` per feature) and the measured
-   σ of that size; the projection gets Gaussian noise of that σ, carried as ``track_sigma_px``.
+   σ of that size at that image scale; the projection gets Gaussian noise of that σ, carried as ``track_sigma_px``.
 4. **False matches** at the measured cross-view rate, made as in the fixed model (a wrong point on
    the first view's ray: epipolar-consistent).
 5. **Association between epochs**: each feature keeps its descriptor from epoch to epoch with the
-   measured association survival at the viewpoint change between the two epochs (the rotation of
+   measured association survival of re-detected keypoints (correct associations over keypoints
+   detected again at their true position) at the viewpoint change between the two epochs (the rotation of
    the camera frames relative to the body); otherwise it gets a new, unrelated descriptor.  A
    fraction of the tracks (the measured false-association rate) takes the previous descriptor of
    another feature instead: a false association.
@@ -114,17 +117,13 @@ def observe_epochs_calibrated(cams, T, target, q, sun, fsun, feats, rng, *, cali
     N = len(feats)
     D = feats.descriptors.shape[1]
     rho_F = N / float(target.triangle_areas_m2.sum())
+    material = target.triangle_material[feats.triangle_id] if cal.material_factor.shape[1] == len(target.materials) \
+        else None
     f_px = np.array([math.sqrt(c.K[0, 0] * c.K[1, 1]) for c in cams])
     # per-feature draws that hold for the whole call (consecutive epochs of one trial)
     u_det = rng.random(N)
     v_size = rng.random(N)
-    z_common = rng.standard_normal(N)
-    eps_pair = rng.standard_normal((N, n, n))
-    eps_pair = np.triu(eps_pair, 1) + np.swapaxes(np.triu(eps_pair, 1), 1, 2)
-    r2v = cal.three_over_two_ratio
-    rho_c = pair_copula_correlation(r2v, float(np.mean(cal.pair_survival[:, 0])))
-    z_pair = math.sqrt(rho_c) * z_common[:, None, None] + math.sqrt(1.0 - rho_c) * eps_pair
-    u_pair = ndtr(z_pair)                                                  # (N, n, n) uniform, correlated
+    rho_c = pair_copula_correlation(cal.three_over_two_ratio, float(np.mean(cal.pair_survival[:, 0])))
     desc_state = feats.descriptors.copy()
     prev = None                                                           # (R_CT (n,3,3), tracked ids, states)
     out: list[Observation] = []
@@ -136,7 +135,7 @@ def observe_epochs_calibrated(cams, T, target, q, sun, fsun, feats, rng, *, cali
         fp = g.z / f_px[None, :, None]                                    # (e, n, N) m/px
         with np.errstate(invalid="ignore"):
             sun_bin = cal.sun_bin(np.where(g.cos_view >= 0, 1.0, -1.0) * g.cos_sun, True)
-            p_det = cal.density(np.where(g.vis, fp, 1.0), g.cos_view, sun_bin) / rho_F
+            p_det = cal.density(np.where(g.vis, fp, 1.0), g.cos_view, sun_bin, material) / rho_F
         g.vis &= u_det[None, None, :] < p_det
         _occlude(g, target, feats, _sun_T(q[sl], sun[sl]))
         for k in range(g.vis.shape[0]):
@@ -160,7 +159,12 @@ def observe_epochs_calibrated(cams, T, target, q, sun, fsun, feats, rng, *, cali
                 fp_f = np.where(n_det > 0, np.sum(np.where(det, fp[k].T, 0.0), axis=1) / n_det, np.nan)  # (N,)
             cand = np.nonzero(det.sum(axis=1) >= 2)[0]
             S = cal.pair_survival_at(np.nan_to_num(fp_f[cand], nan=1.0)[:, None, None], ang[None])
-            adj = det[cand][:, :, None] & det[cand][:, None, :] & (u_pair[cand] < S)
+            # the pair matches are drawn afresh every epoch (rendered tracks are re-made each epoch:
+            # about as many persist as the pair survival), correlated between the pairs of one feature
+            eps = rng.standard_normal((len(cand), n, n))
+            eps = np.triu(eps, 1) + np.swapaxes(np.triu(eps, 1), 1, 2)
+            z = math.sqrt(rho_c) * rng.standard_normal(len(cand))[:, None, None] + math.sqrt(1.0 - rho_c) * eps
+            adj = det[cand][:, :, None] & det[cand][:, None, :] & (ndtr(z) < S)
             adj &= ~np.eye(n, dtype=bool)[None]
             members = _components(adj) & det[cand]
             is_track = members.sum(axis=1) >= min_views
@@ -194,7 +198,7 @@ def observe_epochs_calibrated(cams, T, target, q, sun, fsun, feats, rng, *, cali
                 continue
             uv_e = np.swapaxes(g.uv[k][:, fid], 0, 1).copy()              # (M, n, 2)
             size_px = cal.size_px(fp[k][:, fid].T, np.broadcast_to(v_size[fid, None], (M, n)))
-            sig = cal.sigma_for_size(size_px)
+            sig = cal.sigma_for_size(size_px, fp[k][:, fid].T)
             uv_e += sig[..., None] * rng.standard_normal(uv_e.shape)
             uv_e[~seen] = np.nan
             desc = desc_state[fid].copy()

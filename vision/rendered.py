@@ -157,7 +157,7 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
     ``threads``: views detected concurrently (:func:`detect_views`; the same keypoints).
 
     ``noise_model="fixed"`` gives every keypoint ``pixel_sigma_px``; ``"calibrated"`` gives each one
-    the σ measured for its SIFT size (``calibration``, default: the shipped calibration of the
+    the σ measured for its SIFT size at its view's image scale (``calibration``, default: the shipped calibration of the
     target, :func:`vision.calibration.load_calibration`) as ``track_sigma_px``, and records their
     root mean square as ``pixel_sigma_px``.
     Returns an empty, flagged observation (never raises) when the target is in Earth's shadow or seen
@@ -185,7 +185,9 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
         return obs
     if noise_model == "calibrated":
         cal = calibration if calibration is not None else load_calibration(target.name)
-        sig = cal.sigma_for_size(obs.keypoint_size_px)
+        # image scale of each view: camera distance to the target's centre over the focal length
+        fp = np.linalg.norm(obs.T_CW[:, :3, 3], axis=1) / np.sqrt(obs.K[:, 0, 0] * obs.K[:, 1, 1])
+        sig = cal.sigma_for_size(obs.keypoint_size_px, fp[None, :])
         rms = float(np.sqrt(np.nanmean(sig**2)))
         obs = dataclasses.replace(obs, track_sigma_px=sig, pixel_sigma_px=rms)
     return label_tracks(obs, renders, target, q_HT, tol_px=truth_tol_px)

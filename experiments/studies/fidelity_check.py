@@ -129,7 +129,8 @@ def check_cell(cell: CheckCell) -> dict:
     sun = sun / np.linalg.norm(sun)
     seeds = cell_seed_sequences(cell.seed, {}, cell.trials)
     out = {k: [] for k in ("tracks", "ml_step_rms_deg", "ransac_step_rms_deg", "crlb_deg",
-                           "ml_over_crlb", "false_track_fraction")}
+                           "ml_over_crlb", "false_track_fraction", "ml_failed_steps", "ransac_failed_steps",
+                           "pairs_per_step")}
     nees = []
     for ss in seeds:
         s_att, s_obs, s_reg = child_seeds(ss, 3)
@@ -150,6 +151,8 @@ def check_cell(cell: CheckCell) -> dict:
         for k, f in enumerate(frames):
             nees.append(nees_of_frame(f, qs[k]))
         crlb = np.array([_crlb_rad(frames[k - 1], frames[k], qs[k - 1], dR) for k in range(1, steps + 1)])
+        out["pairs_per_step"].append(float(np.median([len(same_surface_points(frames[k - 1].obs, frames[k].obs)[0])
+                                                      for k in range(1, steps + 1)])))
         reg_rng = np.random.default_rng(s_reg)
         errs = {}
         for name, reg in regs.items():
@@ -159,6 +162,7 @@ def check_cell(cell: CheckCell) -> dict:
                 e.append(np.linalg.norm(rotvec_from_quat(quat_from_matrix(inc.R_H @ dR.T))) if inc.ok else np.nan)
             errs[name] = np.array(e)
             ok = np.isfinite(errs[name])
+            out[f"{name}_failed_steps"].append(float(steps - ok.sum()))
             out[f"{name}_step_rms_deg"].append(float(np.degrees(np.sqrt(np.mean(errs[name][ok] ** 2))))
                                                if ok.any() else float("nan"))
         ok = np.isfinite(crlb)

@@ -6,8 +6,8 @@ observation mode does (:func:`vision.render.render`, :func:`vision.rendered.fore
 :func:`vision.features.detect`); then
 
 * **detection density**: keypoints per m² of visible surface, binned by the cosine of the view
-  angle and of the Sun incidence (shadowed surface its own bin), from the per-pixel depth, triangle
-  and ``lit`` truth (the area of a pixel is ``(z/f)² / cos(view angle)``);
+  angle and of the Sun incidence (shadowed surface its own bin), and per surface material, from the
+  per-pixel depth, triangle and ``lit`` truth (the area of a pixel is ``(z/f)² / cos(view angle)``);
 * **cross-view matching** with a second camera at ``cross_view_deg`` from A about the target (the
   same epoch, so the same lighting): :func:`vision.features.match_pair` (ratio 0.6, epipolar gate
   1.5 px); a match is correct when the surface points cast through both keypoints reproject within
@@ -182,7 +182,7 @@ def _surface_geometry(r: RenderResult, target: Target, q_HT: np.ndarray, sun_H: 
     view_bin = np.clip(np.searchsorted(COS_VIEW_EDGES, cos_v, side="right") - 1, 0, len(COS_VIEW_EDGES) - 2)
     f = np.sqrt(r.camera.K[0, 0] * r.camera.K[1, 1])
     area = (r.depth_z_m[v, u].astype(float) / f) ** 2 / np.maximum(cos_v, 0.05)
-    return v, u, view_bin, sun_bin, area
+    return v, u, view_bin, sun_bin, area, target.triangle_material[r.triangle_id[v, u]]
 
 
 def _size_bin(size_px: np.ndarray) -> np.ndarray:
@@ -192,10 +192,12 @@ def _size_bin(size_px: np.ndarray) -> np.ndarray:
 class _Tally:
     """Counts of one (target, range) accumulated over the attitudes."""
 
-    def __init__(self, spec: CalibrationSpec):
+    def __init__(self, spec: CalibrationSpec, n_materials: int):
         nv, ns, nz = len(COS_VIEW_EDGES) - 1, len(SUN_BIN_EDGES) - 1, len(SIZE_EDGES_PX) - 1
         self.kp = np.zeros((nv, ns))
         self.area = np.zeros((nv, ns))
+        self.mat_kp = np.zeros(n_materials)
+        self.mat_area = np.zeros(n_materials)
         self.phase_kp = np.zeros(len(_PHASE_EDGES_DEG) - 1)
         self.phase_area = np.zeros(len(_PHASE_EDGES_DEG) - 1)
         a, d = len(spec.cross_view_deg), len(spec.epoch_change_deg)
@@ -231,8 +233,9 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
     t.samples += 1
     if not rA.ok:
         return
-    v, u, vb, sb, area = _surface_geometry(rA, target, q, sun)
+    v, u, vb, sb, area, mat = _surface_geometry(rA, target, q, sun)
     np.add.at(t.area, (vb, sb), area)
+    np.add.at(t.mat_area, mat, area)
     pb = min(int(np.searchsorted(_PHASE_EDGES_DEG, phase, side="right")) - 1, len(t.phase_kp) - 1)
     t.phase_area[pb] += area.sum()
     pix = np.full(rA.mask.shape, -1, dtype=np.int64)
@@ -241,6 +244,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
     on = pix[ki[:, 1], ki[:, 0]]
     hit = on >= 0
     np.add.at(t.kp, (vb[on[hit]], sb[on[hit]]), 1.0)
+    np.add.at(t.mat_kp, mat[on[hit]], 1.0)
     t.phase_kp[pb] += hit.sum()
     if len(kA) < 2:
         return
@@ -358,7 +362,7 @@ def calibrate(spec: CalibrationSpec = DEFAULT, *, command: str = "",
         target = load_calibration_target(name)
         per_range = []
         for ss_r, range_m in zip(ss_t.spawn(len(spec.ranges_m)), spec.ranges_m, strict=True):
-            t = _Tally(spec)
+            t = _Tally(spec, len(target.materials))
             for ss in ss_r.spawn(int(spec.attitudes)):
                 _sample(spec, target, cam, float(range_m), ss, t)
                 done += 1
@@ -418,11 +422,15 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
         "sigma_px": [None if not np.isfinite(x) else round(float(x), 4) for x in s_all],
         "sigma_pairs_per_bin": c_all.astype(int).tolist(),
         "sigma_px_by_range": sig_by_range,
+        "sigma_pairs_per_bin_by_range": cnt_by_range,
         "pair_residual_rms_px_per_axis": round(float(np.sqrt(np.mean(e2_all))), 4) if e2_all.size else None,
         "size_quantiles": list(_QUANTILES.round(3)),
         "track_size_px_quantiles_by_range": quant,
         "keypoints": [t.kp.astype(int).tolist() for t in per_range],
         "visible_area_m2": [t.area.round(4).tolist() for t in per_range],
+        "materials": [m.name for m in target.materials],
+        "material_keypoints": [t.mat_kp.astype(int).tolist() for t in per_range],
+        "material_area_m2": [t.mat_area.round(4).tolist() for t in per_range],
         "phase_keypoints": [t.phase_kp.astype(int).tolist() for t in per_range],
         "phase_area_m2": [t.phase_area.round(3).tolist() for t in per_range],
         "cross_view": {

@@ -34,6 +34,16 @@ def test_measured_sigma_grows_from_the_smallest_to_the_largest_sift_keypoints(na
     np.testing.assert_array_equal(cal.sigma_for_size(sizes), cal.sigma_px[:-1])
 
 
+def test_sigma_at_an_image_scale_is_the_by_range_table_and_held_beyond_it():
+    cal = load_calibration("fy1")
+    sizes = 0.5 * (SIZE_EDGES_PX[:-2] + SIZE_EDGES_PX[1:-1])
+    for r, fp in enumerate(cal.footprint_m_per_px):
+        np.testing.assert_allclose(cal.sigma_for_size(sizes, fp), cal.sigma_px_by_range[r, :-1])
+    np.testing.assert_allclose(cal.sigma_for_size(sizes, 3 * cal.footprint_m_per_px[-1]), cal.sigma_px_by_range[-1, :-1])
+    mid = cal.sigma_for_size(sizes, np.sqrt(np.prod(cal.footprint_m_per_px)))
+    np.testing.assert_allclose(mid, cal.sigma_px_by_range[:, :-1].mean(axis=0))
+
+
 def test_density_is_interpolated_in_log_footprint_and_follows_the_power_law_beyond():
     cal = load_calibration("fy1")
     f0, f1 = cal.footprint_m_per_px

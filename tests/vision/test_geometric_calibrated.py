@@ -32,16 +32,19 @@ def test_pixel_noise_has_the_calibrated_sigma_of_each_keypoint_size(fy1):
     T = three_cameras(40.0, 10.0)
     q, obs = _trial(fy1, T, 6, 0.87, 1)
     cal = load_calibration("fy1")
-    z = []
+    zs = []
     for o, qk in zip(obs, q, strict=True):
         good = o.feature_id >= 0
-        np.testing.assert_array_equal(o.track_sigma_px[o.seen], cal.sigma_for_size(o.keypoint_size_px)[o.seen])
         X_H = o.X_T_true[good] @ matrix_from_quat(qk).T
+        z = np.stack([(X_H @ T[i, :3, :3].T + T[i, :3, 3])[:, 2] for i in range(3)], axis=1)   # depth, m
+        sg = o.seen[good]
+        expected = cal.sigma_for_size(o.keypoint_size_px[good], z / CAM.K[0, 0])
+        np.testing.assert_allclose(o.track_sigma_px[good][sg], expected[sg], rtol=1e-9)
         for i in range(3):
             s = o.seen[good, i]
             uv, _ = CAM.project_world(X_H[s], T[i])
-            z.append((o.uv_px[good][s, i] - uv) / o.track_sigma_px[good][s, i, None])
-    z = np.concatenate(z).ravel()
+            zs.append((o.uv_px[good][s, i] - uv) / o.track_sigma_px[good][s, i, None])
+    z = np.concatenate(zs).ravel()
     assert z.size > 400
     assert abs(np.std(z) - 1.0) < 0.06 and abs(np.mean(z)) < 0.1
 

@@ -19,7 +19,9 @@ def test_calibrated_rendered_tracks_carry_the_sigma_of_their_keypoint_sizes(came
     assert fixed.track_sigma_px is None and fixed.pixel_sigma_px == 0.5
     s = cal.seen
     assert np.all(cal.keypoint_size_px[s] > 1.0) and np.all(np.isnan(cal.keypoint_size_px[~s]))
-    np.testing.assert_array_equal(cal.track_sigma_px[s], load_calibration("fy1").sigma_for_size(cal.keypoint_size_px[s]))
+    fp = np.linalg.norm(T[:, :3, 3], axis=1) / camera.K[0, 0]                 # image scale of each view, m/px
+    expected = load_calibration("fy1").sigma_for_size(cal.keypoint_size_px, fp[None, :])
+    np.testing.assert_allclose(cal.track_sigma_px[s], expected[s], rtol=1e-12)
     np.testing.assert_allclose(cal.pixel_sigma_px, np.sqrt(np.mean(cal.track_sigma_px[s] ** 2)))
     # the measured σ (0.1-0.6 px) replaces the configured 0.5 px; most tracks are small keypoints
     assert np.median(cal.track_sigma_px[s]) < 0.3

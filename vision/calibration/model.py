@@ -30,6 +30,8 @@ SUN_BIN_EDGES = np.array([-1.0, 0.0, 0.26, 0.5, 0.71, 0.87, 1.0001])
 _MIN_CELL_AREA_M2 = 2.0
 #: floor of a bin's σ (a bin whose least-squares σ² came out 0), px
 _MIN_SIGMA_PX = 0.02
+#: pairs a size bin needs at one range to use that range's own σ
+_MIN_PAIRS_PER_BIN = 20
 
 
 def calibration_path() -> Path:
@@ -52,6 +54,34 @@ def _table(rows: list) -> np.ndarray:
     return np.stack([_fill_nearest(r) for r in rows])
 
 
+def _conditional(num: list, den: list) -> list:
+    """``num / den`` per range and column (None where den is 0), at most 1."""
+    return [[None if d <= 0 else min(1.0, n / d) for n, d in zip(rn, rd, strict=True)] for rn, rd in zip(num, den, strict=True)]
+
+
+def _sigma_by_range(t: dict) -> np.ndarray:
+    pooled = np.maximum(_fill_nearest(t["sigma_px"]), _MIN_SIGMA_PX)
+    counts = np.asarray(t.get("sigma_pairs_per_bin_by_range", [[0] * len(pooled)] * len(t["ranges_m"])))
+    rows = []
+    for r, row in enumerate(t["sigma_px_by_range"]):
+        v = np.array([np.nan if x is None else float(x) for x in row])
+        ok = np.isfinite(v) & (counts[r] >= _MIN_PAIRS_PER_BIN) & (v >= _MIN_SIGMA_PX)
+        rows.append(np.where(ok, v, pooled))
+    return np.stack(rows)
+
+
+def _material_factor(t: dict) -> np.ndarray:
+    if "material_keypoints" not in t:
+        return np.ones((len(t["ranges_m"]), 1))
+    kp = np.asarray(t["material_keypoints"], dtype=float)
+    area = np.asarray(t["material_area_m2"], dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        f = (kp / area) / (kp.sum(axis=1, keepdims=True) / area.sum(axis=1, keepdims=True))
+    f = np.where(area >= _MIN_CELL_AREA_M2, f, 1.0)
+    # renormalise so that the area-weighted mean factor stays 1 (the table already holds the mean)
+    return f * area.sum(axis=1, keepdims=True) / np.sum(f * area, axis=1, keepdims=True)
+
+
 @dataclass(frozen=True, eq=False)
 class SiftCalibration:
     """Measured SIFT statistics of one target (see :mod:`vision.calibration`).
@@ -63,7 +93,10 @@ class SiftCalibration:
     footprint_m_per_px : ndarray (R,)
         Calibrated image scales (range / focal length), m/px.
     sigma_px : ndarray (Z,)
-        Keypoint localisation σ per axis for each size bin of :data:`SIZE_EDGES_PX`, px.
+        Keypoint localisation σ per axis for each size bin of :data:`SIZE_EDGES_PX`, px (all ranges).
+    sigma_px_by_range : ndarray (R, Z)
+        The same per calibrated footprint (a bin measured with too few pairs at one range takes
+        the all-range value).
     density_per_m2 : ndarray (R, V, S)
         Keypoints per m² of visible surface by footprint, view bin and Sun bin.
     size_quantiles : ndarray (Q,), size_px_quantiles : ndarray (R, Q)
@@ -71,9 +104,14 @@ class SiftCalibration:
     cross_view_deg : ndarray (A,), pair_survival, false_match_rate : ndarray (R, A)
         Cross-view match survival and false-match rate against the angle between the cameras.
     change_deg : ndarray (D,), association_survival, false_association_rate : ndarray (R, D)
-        Inter-epoch association survival and false-association rate against the viewpoint change.
+        Inter-epoch association survival of re-detected tracked keypoints (correct associations
+        over those detected again within the truth tolerance) and false-association rate against
+        the viewpoint change.
     three_over_two_ratio : float
         Tracks of three cameras at the first cross-view angle over matches of two of them.
+    material_factor : ndarray (R, P)
+        Density of each of the target's P materials over the target's mean (area-weighted mean 1;
+        1 for materials with less than 2 m² seen).
     measured_cell : ndarray (R, V, S) bool
         Density cells with enough surface seen to be measured (the others are the product of the
         view and Sun marginals).
@@ -83,6 +121,7 @@ class SiftCalibration:
     target: str
     footprint_m_per_px: np.ndarray
     sigma_px: np.ndarray
+    sigma_px_by_range: np.ndarray
     density_per_m2: np.ndarray
     size_quantiles: np.ndarray
     size_px_quantiles: np.ndarray
@@ -94,6 +133,7 @@ class SiftCalibration:
     false_association_rate: np.ndarray
     three_over_two_ratio: float
     measured_cell: np.ndarray
+    material_factor: np.ndarray
     provenance: dict
 
     @classmethod
@@ -117,6 +157,7 @@ class SiftCalibration:
             target=target,
             footprint_m_per_px=np.asarray(t["footprint_m_per_px"], dtype=float),
             sigma_px=np.maximum(_fill_nearest(t["sigma_px"]), _MIN_SIGMA_PX),
+            sigma_px_by_range=_sigma_by_range(t),
             density_per_m2=np.nan_to_num(dens),
             size_quantiles=np.asarray(t["size_quantiles"], dtype=float),
             size_px_quantiles=np.asarray([r if r is not None else qfill for r in q], dtype=float),
@@ -124,9 +165,10 @@ class SiftCalibration:
             pair_survival=_table(t["cross_view"]["survival"]),
             false_match_rate=_table(t["cross_view"]["false_match_rate"]),
             change_deg=np.asarray(t["association"]["change_deg"], dtype=float),
-            association_survival=_table(t["association"]["survival"]),
+            association_survival=_table(_conditional(t["association"]["correct"], t["association"]["redetected"])),
             false_association_rate=_table(t["association"]["false_rate"]),
             measured_cell=area >= _MIN_CELL_AREA_M2,
+            material_factor=_material_factor(t),
             three_over_two_ratio=(float(sum(t["cross_view"]["three_view_tracks"]))
                                   / max(1.0, float(sum(t["cross_view"]["two_view_tracks"])))),
             provenance=dict(data.get("provenance", {})),
@@ -159,20 +201,34 @@ class SiftCalibration:
 
     # -- the measured statistics -----------------------------------------------------------------
 
-    def sigma_for_size(self, size_px: ArrayLike) -> np.ndarray:
-        """Localisation σ per axis of keypoints of these diameters, px (NaN for NaN sizes)."""
+    def sigma_for_size(self, size_px: ArrayLike, footprint_m_per_px: ArrayLike | None = None) -> np.ndarray:
+        """Localisation σ per axis of keypoints of these diameters, px (NaN for NaN sizes): at the
+        image scale ``footprint_m_per_px`` (interpolated in log footprint, held beyond the calibrated
+        ones) when given, else pooled over the calibrated ranges."""
         s = np.asarray(size_px, dtype=float)
         b = np.clip(np.searchsorted(SIZE_EDGES_PX, np.nan_to_num(s), side="right") - 1, 0, len(self.sigma_px) - 1)
-        return np.where(np.isfinite(s), self.sigma_px[b], np.nan)
+        if footprint_m_per_px is None:
+            return np.where(np.isfinite(s), self.sigma_px[b], np.nan)
+        fp = np.broadcast_to(np.asarray(footprint_m_per_px, dtype=float), s.shape)
+        i, j, w = self._range_weights(fp)
+        w = np.clip(w, 0.0, 1.0)
+        sig = (1.0 - w) * self.sigma_px_by_range[i, b] + w * self.sigma_px_by_range[j, b]
+        return np.where(np.isfinite(s), sig, np.nan)
 
-    def density(self, footprint_m_per_px: ArrayLike, cos_view: ArrayLike, sun_bin: ArrayLike) -> np.ndarray:
-        """Keypoints per m² of visible surface (``sun_bin`` 0: not lit; see :data:`SUN_BIN_EDGES`)."""
+    def density(self, footprint_m_per_px: ArrayLike, cos_view: ArrayLike, sun_bin: ArrayLike,
+                material: ArrayLike | None = None) -> np.ndarray:
+        """Keypoints per m² of visible surface (``sun_bin`` 0: not lit; see :data:`SUN_BIN_EDGES`), times
+        the factor of the surface ``material`` (index into the target's materials) when given."""
         fp = np.asarray(footprint_m_per_px, dtype=float)
         v = np.clip(np.searchsorted(COS_VIEW_EDGES, np.abs(cos_view), side="right") - 1, 0, len(COS_VIEW_EDGES) - 2)
         s = np.asarray(sun_bin, dtype=int)
         i, j, w = self._range_weights(fp)
         lo = np.maximum(self.density_per_m2[i, v, s], 1e-9)
         hi = np.maximum(self.density_per_m2[j, v, s], 1e-9)
+        if material is not None and self.material_factor.shape[1] > 1:
+            m = np.asarray(material, dtype=int)
+            lo = lo * self.material_factor[i, m]
+            hi = hi * self.material_factor[j, m]
         return np.exp((1.0 - w) * np.log(lo) + w * np.log(hi))
 
     def sun_bin(self, cos_sun: ArrayLike, lit: ArrayLike) -> np.ndarray:
@@ -186,8 +242,8 @@ class SiftCalibration:
         2 m² of surface seen; the power law of :meth:`density` between and beyond footprints)."""
         fp = float(footprint_m_per_px)
         i, j, w = self._range_weights(np.array(fp))
-        lo = np.max(np.where(self.measured_cell[i], self.density_per_m2[i], 0.0))
-        hi = np.max(np.where(self.measured_cell[j], self.density_per_m2[j], 0.0))
+        lo = np.max(np.where(self.measured_cell[i], self.density_per_m2[i], 0.0)) * np.max(self.material_factor[i])
+        hi = np.max(np.where(self.measured_cell[j], self.density_per_m2[j], 0.0)) * np.max(self.material_factor[j])
         return float(np.exp((1.0 - w) * np.log(max(lo, 1e-9)) + w * np.log(max(hi, 1e-9))))
 
     def size_px(self, footprint_m_per_px: ArrayLike, u: ArrayLike) -> np.ndarray:
