@@ -68,6 +68,9 @@ class SmootherSettings:
         a finer threshold relinearises the whole graph at each update.
     relinearize_skip : int
         iSAM2 checks for relinearisation every this many updates.
+    dogleg_epochs : int
+        With the inertia estimated, the first this many epochs are solved with Powell's dogleg,
+        then Gauss–Newton takes over.
     """
 
     estimate_inertia: bool = True
@@ -80,6 +83,7 @@ class SmootherSettings:
     relinearize_threshold: float = 1e-5
     relinearize_threshold_inertia: float = 1e-3
     relinearize_skip: int = 10
+    dogleg_epochs: int = 120
 
 
 @dataclass(frozen=True)
@@ -117,6 +121,24 @@ class AttitudeSmoother:
     settings: SmootherSettings = field(default_factory=SmootherSettings)
 
     def __post_init__(self) -> None:
+        self._isam = gtsam.ISAM2(self._params(dogleg=self.settings.estimate_inertia))
+        self._dogleg = bool(self.settings.estimate_inertia)
+        self._graph = gtsam.NonlinearFactorGraph()
+        self._values = gtsam.Values()
+        self._all = gtsam.NonlinearFactorGraph()
+        self._t: list[float] = []
+        self._pending_cov: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._frame_cov: dict[int, np.ndarray] = {}
+
+    def _params(self, *, dogleg: bool) -> gtsam.ISAM2Params:
+        """iSAM2 settings: per-variable relinearisation thresholds, QR, and Gauss–Newton or Powell's dogleg.
+
+        Every change of the solution is propagated (the default wildfire threshold 1e-3 would leave
+        rates 0.06 °/s stale).  The dogleg (a trust region, at the price of the graph's nonlinear
+        error at every step) serves the first ``dogleg_epochs`` when the inertia shape is estimated:
+        its first steps from a broad prior are far outside the linear range, where Gauss–Newton can
+        diverge.
+        """
         p = gtsam.ISAM2Params()
         thr = gtsam.ISAM2ThresholdMap()
         fine, coarse = self.settings.relinearize_threshold, self.settings.relinearize_threshold_inertia
@@ -125,17 +147,10 @@ class AttitudeSmoother:
         p.setRelinearizeThreshold(thr)
         p.relinearizeSkip = int(self.settings.relinearize_skip)
         p.setFactorization("QR")
-        gn = gtsam.ISAM2GaussNewtonParams()
-        # propagate every change of the solution (the default 1e-3 would leave rates 0.06 deg/s stale)
-        gn.setWildfireThreshold(0.0)
-        p.setOptimizationParams(gn)
-        self._isam = gtsam.ISAM2(p)
-        self._graph = gtsam.NonlinearFactorGraph()
-        self._values = gtsam.Values()
-        self._all = gtsam.NonlinearFactorGraph()
-        self._t: list[float] = []
-        self._pending_cov: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self._frame_cov: dict[int, np.ndarray] = {}
+        opt = gtsam.ISAM2DoglegParams() if dogleg else gtsam.ISAM2GaussNewtonParams()
+        opt.setWildfireThreshold(0.0)
+        p.setOptimizationParams(opt)
+        return p
 
     # ---------------------------------------------------------------- building
     def start(self, t_s: float, R_NT0: np.ndarray, cov_attitude_T: np.ndarray, omega_TN_T0_rad_s: np.ndarray,
@@ -288,6 +303,12 @@ class AttitudeSmoother:
         self._graph = gtsam.NonlinearFactorGraph()
         self._values = gtsam.Values()
         self._pending_cov = {}
+        if self._dogleg and self.n_epochs >= self.settings.dogleg_epochs:
+            # hand over to Gauss-Newton: a new iSAM2 on the whole graph from the dogleg's estimate
+            est = self._isam.calculateEstimate()
+            self._isam = gtsam.ISAM2(self._params(dogleg=False))
+            self._isam.update(self._all, est)
+            self._dogleg = False
 
     # ---------------------------------------------------------------- reading
     def estimate(self, k: int) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,87 @@
+"""The gtsam smoother on synthetic relative rotations of an exactly known torque-free truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from attitude.quaternion import matrix_from_quat
+from attitude.rigid_body import propagate_torque_free
+from closed_loop.smoother import AttitudeSmoother, SmootherSettings
+from closed_loop.torque_free_factor import InertiaShape, rotation_error_T
+
+# diag(1000, 800, 600) turned 25° about (1, 2, 3): the body frame is not the principal frame
+J_T = np.array([[954.613, 67.899, -85.132], [67.899, 823.754, -0.428], [-85.132, -0.428, 621.633]])
+SIGMA = np.deg2rad(0.3)
+
+
+def _truth(duration_s: float):
+    t = np.arange(0.0, duration_s + 0.25, 0.5)
+    q, w = propagate_torque_free(np.array([1.0, 0.0, 0.0, 0.0]), np.deg2rad([5.0, 5.0, 5.0]), J_T, t)
+    return t, matrix_from_quat(q), w
+
+
+def _run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, wrong_at: int | None = None):
+    """Increments every epoch and a closure 40 s back every 4th, 0.3° noise; returns the smoother,
+    the truth and per-epoch NEES of the attitude and the rate."""
+    rng = np.random.default_rng(seed)
+    t, R, w = _truth(duration_s)
+    prior = np.diag([1.0, 0.9, 0.8]) if estimate_inertia else J_T
+    sm = AttitudeSmoother(J_prior_kg_m2=prior, settings=SmootherSettings(estimate_inertia=estimate_inertia))
+    sm.start(0.0, R[0], np.eye(3) * 1e-8, w[0] + rng.normal(size=3) * np.deg2rad(0.1),
+             np.eye(3) * np.deg2rad(0.1) ** 2)
+    C = np.eye(3) * SIGMA ** 2
+    nees = []
+    refused = []
+    for k in range(1, len(t)):
+        sm.add_epoch(t[k])
+        for j in [k - 1] + ([k - 80] if k >= 80 and k % 4 == 0 else []):
+            meas = Rotation.from_rotvec(rng.normal(size=3) * SIGMA).as_matrix() @ R[k] @ R[j].T
+            if sm.gate(j, k, meas, C).accepted:
+                sm.add_relative(j, k, meas, C)
+        if wrong_at is not None and k == wrong_at:
+            for wrong in (Rotation.from_rotvec([0.0, 0.0, np.pi]).as_matrix(),   # a symmetric face
+                          Rotation.from_rotvec(np.deg2rad([10.0, 0.0, 0.0])).as_matrix()):  # bad matches
+                g = sm.gate(0, k, wrong @ R[k] @ R[0].T, C)
+                refused.append(not g.accepted)
+        sm.update()
+        Re, we = sm.estimate(k)
+        Ca, Cw = sm.covariance_T(k)
+        e = rotation_error_T(Re[None], R[k][None])[0]
+        nees.append((e @ np.linalg.solve(Ca, e), (we - w[k]) @ np.linalg.solve(Cw, we - w[k])))
+    return sm, (t, R, w), np.array(nees), refused
+
+
+def test_known_inertia_chain_stays_accurate_and_consistent():
+    """60 s, inertia known: final attitude error measured 0.11° (seed 0) against 2.3° for the
+    plain sum of 120 increments of 0.3°; mean NEES 2.25 / 2.24 (3 dof)."""
+    sm, (t, R, w), nees, _ = _run(60.0, estimate_inertia=False)
+    Re, we = sm.estimate(len(t) - 1)
+    assert np.degrees(np.linalg.norm(rotation_error_T(Re[None], R[-1:]))) < 0.3
+    assert np.degrees(np.linalg.norm(we - w[-1])) < 0.03
+    assert 1.0 < nees[:, 0].mean() < 6.0 and 1.0 < nees[:, 1].mean() < 6.0
+
+
+@pytest.mark.slow
+def test_inertia_shape_is_recovered_from_relative_rotations():
+    """150 s with the inertia estimated from a broad prior (ratios e^±1): the two ratios and the
+    principal axes of a tensor that is not diagonal in the body frame; measured 0.02 % / 0.15°."""
+    sm, (t, R, w), nees, _ = _run(150.0, estimate_inertia=True)
+    est, true = sm.inertia(), InertiaShape.from_tensor(J_T)
+    assert np.allclose(est.principal_moments(), true.principal_moments(), rtol=0.01)
+    _, Ve = np.linalg.eigh(est.J_T)
+    _, Vt = np.linalg.eigh(true.J_T)
+    axes_deg = np.degrees(np.arccos(np.clip(np.abs(np.sum(Ve * Vt, axis=0)), 0, 1)))
+    assert axes_deg.max() < 2.0
+    assert nees[:, 0].mean() < 6.0
+
+
+def test_wrong_closures_are_refused_and_leave_the_estimate_unharmed():
+    """At epoch 60 a closure to epoch 0 rotated 180° (a symmetric face) and one 10° off (corrupted
+    matches), each claiming 0.3°, fail the χ² gate; the estimate is bit-for-bit the run without them."""
+    sm_wrong, (t, R, w), _, refused = _run(40.0, estimate_inertia=False, wrong_at=60)
+    sm_clean, *_ = _run(40.0, estimate_inertia=False)
+    assert refused == [True, True]
+    for k in (60, len(t) - 1):
+        assert np.array_equal(sm_wrong.estimate(k)[0], sm_clean.estimate(k)[0])
