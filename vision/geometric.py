@@ -335,8 +335,13 @@ def _geometry(cams, T, q, sun, fsun, feats, *, min_feature_px, cos_view, cos_sun
                      cos_sun=nsun, c_T=c_T, R_CT=R_CT)
 
 
-def _occlude(g: _Geometry, target: Target, feats: SurfaceFeatures, sun_T: np.ndarray) -> None:
-    """Occlusion towards the cameras and shadowing towards the Sun by ray casting (``g.vis`` in place)."""
+def _occlude(g: _Geometry, target: Target, feats: SurfaceFeatures, sun_T: np.ndarray, *,
+             drop_shadowed: bool = True) -> np.ndarray:
+    """Occlusion towards the cameras and shadowing towards the Sun by ray casting (``g.vis`` in place).
+
+    Returns the ``(E, N)`` mask of features whose side seen by the cameras is in the target's own
+    shadow or faces away from the Sun; ``drop_shadowed`` also removes them from ``g.vis``.
+    """
     import open3d as o3d
 
     vis = g.vis
@@ -354,14 +359,21 @@ def _occlude(g: _Geometry, target: Target, feats: SurfaceFeatures, sun_T: np.nda
     # Sun shadow: once per (epoch, feature) that some camera still sees; the side facing the Sun is
     # the side facing the cameras that see it (the lit test above).
     e_s, f_s = np.nonzero(vis.any(axis=1))
+    dark = np.zeros(vis.shape[::2], dtype=bool)
     if len(e_s):
-        sgn = np.sign(g.cos_sun[e_s, 0, f_s])
+        sgn = np.where(g.cos_sun[e_s, 0, f_s] >= 0, 1.0, -1.0)
         org = feats.X_T[f_s] + eps * sgn[:, None] * feats.normal_T[f_s]
         rays = np.empty((len(e_s), 6), dtype=np.float32)
         rays[:, :3] = org
         rays[:, 3:] = sun_T[e_s]
         shadowed = scene.test_occlusions(o3d.core.Tensor(rays)).numpy().astype(bool)
-        vis[e_s[shadowed], :, f_s[shadowed]] = False
+        # the seen side faces away from the Sun when the cameras see the other side of the surface
+        seen_side = np.where(g.cos_view[e_s, :, f_s] >= 0, 1.0, -1.0)
+        away = np.all((seen_side * sgn[:, None] < 0) | ~vis[e_s, :, f_s], axis=1)
+        dark[e_s, f_s] = shadowed | away
+        if drop_shadowed:
+            vis[e_s[shadowed], :, f_s[shadowed]] = False
+    return dark
 
 
 def _sun_T(q: np.ndarray, sun: np.ndarray) -> np.ndarray:

@@ -1,8 +1,9 @@
 """The geometric mode driven by the rendered-mode calibration (``noise_model = "calibrated"``).
 
-Same surface features and visibility tests as :mod:`vision.geometric` (in the image, facing the
-camera, lit side, unoccluded, unshadowed), then, with the statistics of :mod:`vision.calibration`
-measured on rendered images:
+Same surface features as :mod:`vision.geometric` and its visibility tests towards the cameras (in
+the image, facing the camera, unoccluded); the Sun only sets each feature's Sun bin (lit, with its
+incidence, or in shadow / facing away: rendered keypoints are found there too, on shadow edges and
+silhouettes).  Then, with the statistics of :mod:`vision.calibration` measured on rendered images:
 
 1. **Detection**: feature f is detected in view i when ``u_f < ρ(z/f, view angle, Sun incidence,
    material) / ρ_F``, the measured keypoint density over the features' density ``ρ_F = N / area``.  ``u_f`` is one
@@ -109,7 +110,12 @@ def _components(adj: np.ndarray) -> np.ndarray:
 
 def observe_epochs_calibrated(cams, T, target, q, sun, fsun, feats, rng, *, calibration, min_views, cos_view,
                               cos_sun, descriptor_noise, margin_px, batch_size) -> list[Observation]:
-    """The calibrated model (module docstring) over epochs already validated by :func:`vision.geometric.observe_epochs`."""
+    """The calibrated model (module docstring) over epochs already validated by :func:`vision.geometric.observe_epochs`.
+
+    ``cos_view`` and ``cos_sun`` (the fixed model's limits) are not used: the measured density
+    covers every view angle and unlit surfaces.
+    """
+    del cos_view, cos_sun
     from vision.geometric import _false_matches, _geometry, _occlude, _sun_T
 
     cal = calibration if calibration is not None else load_calibration(target.name)
@@ -130,14 +136,18 @@ def observe_epochs_calibrated(cams, T, target, q, sun, fsun, feats, rng, *, cali
     size = tuple(int(s) for s in cams[0].image_size)
     for b0 in range(0, E, int(batch_size)):
         sl = slice(b0, min(E, b0 + int(batch_size)))
-        g = _geometry(cams, T[sl], q[sl], sun[sl], fsun[sl], feats, min_feature_px=0.0, cos_view=cos_view,
-                      cos_sun=cos_sun, margin_px=margin_px)
+        # every surface facing a camera counts, lit or not: keypoints on shadowed or unlit surfaces
+        # (shadow edges, silhouettes against lit parts) are measured as their own Sun bin
+        g = _geometry(cams, T[sl], q[sl], sun[sl], fsun[sl], feats, min_feature_px=0.0, cos_view=0.0,
+                      cos_sun=-2.0, margin_px=margin_px)
+        dark = _occlude(g, target, feats, _sun_T(q[sl], sun[sl]), drop_shadowed=False)    # (e, N)
         fp = g.z / f_px[None, :, None]                                    # (e, n, N) m/px
+        side = np.where(g.cos_view >= 0, 1.0, -1.0)
+        lit = (side * g.cos_sun > 0) & ~dark[:, None, :]
         with np.errstate(invalid="ignore"):
-            sun_bin = cal.sun_bin(np.where(g.cos_view >= 0, 1.0, -1.0) * g.cos_sun, True)
+            sun_bin = cal.sun_bin(side * g.cos_sun, lit)
             p_det = cal.density(np.where(g.vis, fp, 1.0), g.cos_view, sun_bin, material) / rho_F
         g.vis &= u_det[None, None, :] < p_det
-        _occlude(g, target, feats, _sun_T(q[sl], sun[sl]))
         for k in range(g.vis.shape[0]):
             e = b0 + k
             Te = T[e]
