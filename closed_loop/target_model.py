@@ -48,6 +48,8 @@ class ModelSettings:
     refresh_epochs : int
         The keyframes' viewing directions on the target are recomputed from the smoother's
         estimate every this many epochs.
+    reacquire_tries : int
+        Keyframes tried per epoch while re-acquiring (the nearest in predicted viewpoint).
     """
 
     viewpoint_window_deg: float = 30.0
@@ -56,6 +58,7 @@ class ModelSettings:
     reacquire_after_s: float = 5.0
     relink_after_s: float = 10.0
     refresh_epochs: int = 10
+    reacquire_tries: int = 4
 
 
 @dataclass(frozen=True)
@@ -128,7 +131,7 @@ class TargetModel:
         t_s : float
             Time of the epoch (keyframes that closed the loop within ``relink_after_s`` rest).
         everything : bool
-            Re-acquisition: every keyframe, nearest viewpoint first.
+            Re-acquisition: the ``reacquire_tries`` keyframes nearest in viewpoint, whatever the window.
         exclude : tuple of int
             Epochs not to return (the previous epoch, registered anyway).
 
@@ -154,7 +157,7 @@ class TargetModel:
         ang = np.degrees(np.arctan2(np.linalg.norm(np.cross(dirs, now_T), axis=-1), dirs @ now_T))
         scored = list(zip(kfs, ang.tolist(), strict=True))
         if everything:
-            return sorted(scored, key=lambda s: s[1])
+            return sorted(scored, key=lambda s: s[1])[: self.settings.reacquire_tries]
         near = [s for s in scored if s[1] <= self.settings.viewpoint_window_deg]
         if not near:
             return []
