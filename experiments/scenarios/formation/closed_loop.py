@@ -308,18 +308,40 @@ def _snapshot_dataset(camera: PinholeCamera, target: Target, q_HT: np.ndarray, s
 
 
 def closed_loop_cell(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> dict[str, np.ndarray]:
-    """Sweep cell: the closed loop once per trial seed (coarse grids; every epoch is observed)."""
+    """Sweep cell: the closed loop once per trial seed (coarse grids; every epoch is observed).
+
+    Besides each trial's figures, the Monte Carlo consistency of the cell: at every epoch the NEES
+    averaged over the trials, and the fraction of epochs where that average lies in its 95 % band
+    ``χ²₃ₙ(0.025, 0.975) / n`` (the same value in every trial of the cell).
+    """
+    from scipy.stats import chi2
+
     keys = ("converged", "convergence_time_s", "final_attitude_error_deg", "final_rate_error_deg_s",
-            "median_increment_error_deg", "epochs_with_increment")
+            "median_increment_error_deg", "epochs_with_increment", "mean_nees_attitude", "mean_nees_rate",
+            "inertia_ratio_error_pct", "principal_axes_error_deg", "avg_nees_attitude_in_band",
+            "avg_nees_rate_in_band")
     out = {k: np.full(len(seeds), np.nan) for k in keys}
+    nees_a, nees_w = [], []
     for i, ss in enumerate(seeds):
-        _, s = closed_loop(cfg, ss, snapshot=False)
+        ds, s = closed_loop(cfg, ss, snapshot=False)
         out["converged"][i] = float(s["converged"])
         out["convergence_time_s"][i] = s["convergence_time_s"]
         out["final_attitude_error_deg"][i] = s["final_rms_attitude_error_deg"]
         out["final_rate_error_deg_s"][i] = s["final_rms_rate_error_deg_s"]
         out["median_increment_error_deg"][i] = s["median_increment_error_deg"]
         out["epochs_with_increment"][i] = s["epochs_with_increment"]
+        out["mean_nees_attitude"][i] = s["mean_nees_attitude"]
+        out["mean_nees_rate"][i] = s["mean_nees_rate"]
+        if "inertia_ratio_error_pct" in s:
+            out["inertia_ratio_error_pct"][i] = float(np.max(np.abs(s["inertia_ratio_error_pct"])))
+            out["principal_axes_error_deg"][i] = float(np.max(s["principal_axes_error_deg"]))
+        nees_a.append(ds["nees_attitude"].values[1:])
+        nees_w.append(ds["nees_rate"].values[1:])
+    n = len(seeds)
+    lo, hi = chi2.ppf([0.025, 0.975], 3 * n) / n
+    for key, arr in (("avg_nees_attitude_in_band", nees_a), ("avg_nees_rate_in_band", nees_w)):
+        avg = np.mean(np.asarray(arr), axis=0)
+        out[key][:] = float(np.mean((avg >= lo) & (avg <= hi)))
     return out
 
 
@@ -334,6 +356,14 @@ def closed_loop_sweep_cell(cfg: Config) -> SweepCell:
             "final_rate_error_deg_s": Metric("deg/s", long_name="RMS rate error over the final hold window"),
             "median_increment_error_deg": Metric("deg", long_name="median registered increment error"),
             "epochs_with_increment": Metric("1", long_name="epochs whose increment updated the filter"),
+            "mean_nees_attitude": Metric("1", long_name="attitude NEES (3 dof) averaged over the run"),
+            "mean_nees_rate": Metric("1", long_name="rate NEES (3 dof) averaged over the run"),
+            "inertia_ratio_error_pct": Metric("%", long_name="largest inertia-ratio error (estimated inertia)"),
+            "principal_axes_error_deg": Metric("deg", long_name="largest principal-axis error (estimated inertia)"),
+            "avg_nees_attitude_in_band": Metric(
+                "1", long_name="cell: fraction of epochs whose trial-averaged attitude NEES is in its 95 % band"),
+            "avg_nees_rate_in_band": Metric(
+                "1", long_name="cell: fraction of epochs whose trial-averaged rate NEES is in its 95 % band"),
         },
         name="closed_loop",
     )
