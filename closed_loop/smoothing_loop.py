@@ -208,7 +208,8 @@ class SmoothingLoop:
                 reasons.append(f"innovation chi2 {gate.chi2:.3g} above {gate.threshold:.3g}")
                 rec.n_rejected[k] += 1
                 continue
-            sm.add_relative(j, k, dR_N, cov_N)
+            sm.add_relative(j, k, dR_N, cov_N,
+                            inflation=model.settings.closure_inflation if mode != "previous" else 1.0)
             links.append((j, inc, mode))
             rec.n_links[k] += 1
             if mode != "previous":

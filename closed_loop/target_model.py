@@ -50,6 +50,8 @@ class ModelSettings:
         estimate every this many epochs.
     reacquire_tries : int
         Keyframes tried per epoch while re-acquiring (the nearest in predicted viewpoint).
+    closure_inflation : float
+        Factor on a closure's own covariance (beyond the two frames' shares) in the smoother.
     """
 
     viewpoint_window_deg: float = 30.0
@@ -59,6 +61,7 @@ class ModelSettings:
     relink_after_s: float = 10.0
     refresh_epochs: int = 10
     reacquire_tries: int = 4
+    closure_inflation: float = 1.0
 
 
 @dataclass(frozen=True)
