@@ -35,3 +35,42 @@ def test_formation_config_is_frozen():
         cfg.formation.distance_m = 10.0
     moved = cfg.model_copy(update={"formation": cfg.formation.model_copy(update={"distance_m": 60.0})})
     assert moved.formation.distance_m == 60.0 and cfg.formation.distance_m == 40.0
+
+
+@pytest.mark.parametrize("registration, model", [("map", True), ("ml", False)])
+@pytest.mark.parametrize("estimate", [True, False])
+def test_smoother_config_builds_the_smoothing_loop(registration, model, estimate):
+    """``filter = "smoother"`` gives the smoothing loop; ``map`` gives it a target model with the
+    configured window; the smoother starts from the prior shape or the true tensor."""
+    import numpy as np
+
+    from closed_loop.smoothing_loop import SmoothingLoop
+
+    _, cfg = load_config(CONFIGS / "003_smoother_300s.toml", overrides={
+        "estimator.registration": registration, "estimator.estimate_inertia": estimate,
+        "estimator.viewpoint_window_deg": 25.0, "estimator.min_inliers": 12})
+    loop = make_loop(cfg)
+    assert type(loop) is SmoothingLoop
+    assert (loop.model is not None) == model
+    if model:
+        assert loop.model.viewpoint_window_deg == 25.0
+    assert loop.registrar.evidence.min_inliers == 12
+    assert loop.settings.estimate_inertia == estimate
+    expected = np.diag([1.0, 0.9, 0.8]) if estimate else cfg.inertia()
+    assert np.array_equal(loop.J_prior_kg_m2, expected)
+    assert not np.allclose(cfg.inertia(), np.diag(np.diag(cfg.inertia())))  # the truth is not diagonal
+
+
+@pytest.mark.parametrize("override, message", [
+    ({"estimator.registration": "map", "estimator.filter": "ekf"}, "'map' needs estimator.filter = 'smoother'"),
+    ({"target.inertia_tensor_kg_m2": [[1.0, 2.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]}, "must be symmetric"),
+    ({"target.inertia_tensor_kg_m2": [[1.0, 0.0], [0.0, 1.0]]}, "expected a 3x3 matrix"),
+    ({"target.inertia_tensor_kg_m2": [[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]}, "positive definite"),
+    ({"target.inertia_tensor_kg_m2": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 3.0]]}, "triangle inequality"),
+])
+def test_bad_smoother_settings_are_one_line_errors(override, message):
+    from experiments.config import ConfigError
+
+    with pytest.raises(ConfigError, match=message) as e:
+        load_config(CONFIGS / "quickstart.toml", overrides=override)
+    assert "\n" not in str(e.value).strip()
