@@ -13,8 +13,9 @@ silhouettes).  Then, with the statistics of :mod:`vision.calibration` measured o
    survival ``S(z/f, angle between the cameras)`` through a Gaussian copula whose correlation
    between pairs reproduces the measured ratio of three-view to two-view tracks; tracks are the
    connected components of the pair matches with at least ``min_views`` views.  The matches are
-   drawn afresh every epoch: on rendered images about half of the tracks of one epoch are tracks
-   again 0.9° later (the ratio test is decided anew in every image pair), close to ``S``.
+   re-decided every epoch, the copula variables an AR(1) process over the epochs whose correlation
+   gives the measured track persistence (on rendered images only about half of the tracks of one
+   epoch are tracks again 1° later: the ratio test is decided anew in every image pair).
 3. **Localisation**: every (track, view) gets a keypoint size (quantile ``v_f`` of the measured size
    distribution of tracked keypoints at its image scale, one ``v_f`` per feature) and the measured
    σ of that size at that image scale; the projection gets Gaussian noise of that σ, carried as ``track_sigma_px``.
@@ -45,7 +46,7 @@ from vision.observation import (
 )
 from vision.target import Target
 
-__all__ = ["calibrated_feature_count", "pair_copula_correlation", "observe_epochs_calibrated"]
+__all__ = ["calibrated_feature_count", "pair_copula_correlation", "temporal_correlation", "observe_epochs_calibrated"]
 
 #: margin on the largest measured density when sizing the feature set
 _DENSITY_MARGIN = 1.2
@@ -94,6 +95,31 @@ def pair_copula_correlation(ratio_three_over_two: float, survival: float) -> flo
     return 0.5 * (lo + hi)
 
 
+def _both_below(c: float, rho: float) -> float:
+    """P(X < c, Y < c) for standard bivariate normal X, Y with correlation rho (quadrature in X)."""
+    x = np.linspace(-9.0, c, 4001)
+    r = min(max(rho, -1 + 1e-9), 1 - 1e-9)
+    f = np.exp(-0.5 * x * x) / math.sqrt(2 * math.pi) * ndtr((c - r * x) / math.sqrt(1 - r * r))
+    return float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(x)))
+
+
+def temporal_correlation(persistence: float, survival: float) -> float:
+    """Epoch-to-epoch correlation of a pair's copula variable that makes a match made at one epoch
+    be made again at the next with probability ``persistence`` (marginal probability ``survival``)."""
+    if not (np.isfinite(persistence) and 0 < survival < 1):
+        return 0.0
+    c = float(ndtri(survival))
+    target = float(np.clip(persistence, survival, 1.0 - 1e-6))
+    lo, hi = 0.0, 1.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if _both_below(c, mid) / survival < target:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
 def _rotation_angle_deg(R: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip((np.trace(R, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)))
 
@@ -130,6 +156,14 @@ def observe_epochs_calibrated(cams, T, target, q, sun, fsun, feats, rng, *, cali
     u_det = rng.random(N)
     v_size = rng.random(N)
     rho_c = pair_copula_correlation(cal.three_over_two_ratio, float(np.mean(cal.pair_survival[:, 0])))
+    ok = np.isfinite(cal.track_persistence)
+    rho_t = float(np.mean([temporal_correlation(p, s) for p, s in
+                           zip(cal.track_persistence[ok], cal.pair_survival[ok, 0], strict=True)])) if ok.any() else 0.0
+    # copula variables of every feature's view pairs: a common factor and one per pair, each an AR(1)
+    # process over the epochs of the call with correlation rho_t
+    w_pair = rng.standard_normal(N)
+    e_pair = rng.standard_normal((N, n, n))
+    first = True
     desc_state = feats.descriptors.copy()
     prev = None                                                           # (R_CT (n,3,3), tracked ids, states)
     out: list[Observation] = []
@@ -169,11 +203,15 @@ def observe_epochs_calibrated(cams, T, target, q, sun, fsun, feats, rng, *, cali
                 fp_f = np.where(n_det > 0, np.sum(np.where(det, fp[k].T, 0.0), axis=1) / n_det, np.nan)  # (N,)
             cand = np.nonzero(det.sum(axis=1) >= 2)[0]
             S = cal.pair_survival_at(np.nan_to_num(fp_f[cand], nan=1.0)[:, None, None], ang[None])
-            # the pair matches are drawn afresh every epoch (rendered tracks are re-made each epoch:
-            # about as many persist as the pair survival), correlated between the pairs of one feature
-            eps = rng.standard_normal((len(cand), n, n))
-            eps = np.triu(eps, 1) + np.swapaxes(np.triu(eps, 1), 1, 2)
-            z = math.sqrt(rho_c) * rng.standard_normal(len(cand))[:, None, None] + math.sqrt(1.0 - rho_c) * eps
+            # the pair matches are re-decided every epoch, correlated with the previous epoch's as
+            # measured (track persistence) and between the pairs of one feature (3-view/2-view ratio)
+            if not first:
+                a = math.sqrt(1.0 - rho_t * rho_t)
+                w_pair = rho_t * w_pair + a * rng.standard_normal(N)
+                e_pair = rho_t * e_pair + a * rng.standard_normal((N, n, n))
+            first = False
+            eps = np.triu(e_pair[cand], 1) + np.swapaxes(np.triu(e_pair[cand], 1), 1, 2)
+            z = math.sqrt(rho_c) * w_pair[cand][:, None, None] + math.sqrt(1.0 - rho_c) * eps
             adj = det[cand][:, :, None] & det[cand][:, None, :] & (ndtr(z) < S)
             adj &= ~np.eye(n, dtype=bool)[None]
             members = _components(adj) & det[cand]

@@ -9,7 +9,8 @@ the median tracks per epoch, the per-step RMS error of both fits, the Cramér–
 with the observation's own σ per track and view (``Observation.sigma_uv_px``), and the
 triangulation NEES of every correct point (truth from ``X_T_true``).
 
-``python -m experiments.studies.fidelity_check --help`` runs it (``docs/reproduction.md``).
+``python -m experiments.studies.fidelity_check --help`` runs it, ``--table`` prints the comparison
+(``docs/reproduction.md``).
 """
 
 from __future__ import annotations
@@ -185,17 +186,49 @@ def _summary(res: dict) -> dict:
     return {**med, "nees_mean": res["nees_mean"], "nees_median": res["nees_median"], "nees_points": res["nees_points"]}
 
 
+def markdown_table(rendered: dict, fixed: dict, calibrated: dict) -> str:
+    """Per cell: rendered / fixed geometric / calibrated geometric medians; ✓ where calibrated is within ±25 %."""
+    keys = (("tracks", "tracks per epoch", "{:.0f}"), ("ml_step_rms_deg", "ML per-step RMS (deg)", "{:.3f}"),
+            ("ransac_step_rms_deg", "robust Kabsch per-step RMS (deg)", "{:.3f}"), ("crlb_deg", "CRLB (deg)", "{:.3f}"),
+            ("ml_failed_steps", "ML failed steps", "{:.1f}"))
+    head = "| views, range, angle | " + " | ".join(k[1] for k in keys) + " |"
+    lines = [head, "|---" * (len(keys) + 1) + "|"]
+
+    def cell_of(res, c):
+        return next(x for x in res["cells"] if (x["n_views"], x["distance_m"], x["axis_angle_deg"]) == c)
+
+    for c in rendered["cells"]:
+        key = (c["n_views"], c["distance_m"], c["axis_angle_deg"])
+        f, g = cell_of(fixed, key), cell_of(calibrated, key)
+        row = [f"{key[0]}, {key[1]:g} m, {key[2]:g}°"]
+        for k, _, fmt in keys:
+            r = c[k]
+            ok = np.isfinite(r) and np.isfinite(g[k]) and abs(g[k] / r - 1.0) <= 0.25
+            row.append(" / ".join("–" if not np.isfinite(v) else fmt.format(v) for v in (r, f[k], g[k]))
+                       + (" ✓" if ok else ""))
+        lines.append("| " + " | ".join(row) + " |")
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """Run the check grid for one target and mode; write a JSON of per-cell medians and per-trial values."""
     ap = argparse.ArgumentParser(prog="python -m experiments.studies.fidelity_check", description=__doc__.split("\n")[0])
     ap.add_argument("--target", default="fy1", help="fy1 or a bundled mesh (topex)")
-    ap.add_argument("--mode", choices=sorted(MODES), required=True)
+    ap.add_argument("--mode", choices=sorted(MODES))
+    ap.add_argument("--table", nargs=3, type=Path, metavar=("RENDERED", "FIXED", "CALIBRATED"),
+                    help="print the markdown table of three result files instead of running")
     ap.add_argument("--trials", type=int, default=20)
     ap.add_argument("--views", default="2,3")
     ap.add_argument("--distances-m", default="40,80")
     ap.add_argument("--angles-deg", default="10,20")
-    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--out", type=Path)
     a = ap.parse_args(argv)
+    if a.table:
+        r, f, g = (json.loads(p.read_text(encoding="utf-8")) for p in a.table)
+        print(markdown_table(r, f, g))
+        return
+    if a.mode is None or a.out is None:
+        ap.error("--mode and --out are required (or --table)")
     cells = [(int(n), float(d), float(g)) for n in a.views.split(",") for d in a.distances_m.split(",")
              for g in a.angles_deg.split(",")]
     results = {"target": a.target, "mode": a.mode, "trials": a.trials, "cells": []}

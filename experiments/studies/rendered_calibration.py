@@ -20,6 +20,8 @@ observation mode does (:func:`vision.render.render`, :func:`vision.rendered.fore
 * **three views**: a third camera at the first cross-view angle from both A and B; the tracks of
   the three views (:func:`vision.features.match_views`) against the matches of A and B alone tell
   how strongly the pair matches of one feature are correlated;
+* **track persistence**: the tracks of the first cross-view pair that are matched again between the
+  same two cameras after the first epoch change (over those both cameras still see);
 * **inter-epoch association**: A's matched keypoints (the tracks of the 10° pair) against the
   keypoints of A's camera after the target turned by ``epoch_change_deg`` about a random axis (the
   Sun fixed in H, so the lighting changes as in orbit), ratio test without a geometric gate as in
@@ -209,6 +211,8 @@ class _Tally:
         self.nz = nz
         self.tracks2 = 0
         self.tracks3 = 0
+        self.persist_num = 0
+        self.persist_den = 0
         self.samples = 0
 
 
@@ -216,7 +220,10 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
             ss: np.random.SeedSequence, t: _Tally) -> None:
     s_geo, s_img = child_seeds(ss, 2)
     g = np.random.default_rng(s_geo)
-    img_rngs = np.random.default_rng(s_img).spawn(2 + len(spec.cross_view_deg) + len(spec.epoch_change_deg))
+    # one stream per image: A, the cross-view cameras, the epoch changes, the third camera, then B after
+    # the first epoch change (appended last, so the other images keep their streams)
+    n_img = 1 + len(spec.cross_view_deg) + len(spec.epoch_change_deg)
+    img_rngs = np.random.default_rng(s_img).spawn(n_img + 2)
     q = quat_normalize(g.normal(size=4))
     eA = g.normal(size=3)
     eA /= np.linalg.norm(eA)
@@ -276,13 +283,14 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
         t.pair_e2.append(np.mean(res**2, axis=1))
         t.pair_bins.append(np.stack([_size_bin(kA.size_px[mc[:, 0]]), _size_bin(kB.size_px[mc[:, 1]])], axis=1))
         if a == 0:
+            T_B0 = T_B
             tracks = mc[:, 0]
             t.track_sizes.append(kA.size_px[tracks])
             # a third camera at the same angle from A and B: 3-view tracks against 2-view ones
             R60 = matrix_from_quat(quat_from_rotvec(np.radians(60.0) * eA))
             Rc = matrix_from_quat(quat_from_rotvec(np.radians(ang) * (R60 @ axis)))
             T_C = look_at(range_m * (Rc @ eA), np.zeros(3), Rc @ up)
-            rC, kC = _render(cam, T_C, target, q, sun, img_rngs[-1])
+            rC, kC = _render(cam, T_C, target, q, sun, img_rngs[n_img])
             if rC.ok and len(kC) >= 2:
                 obs3 = match_views([kA, kB, kC], cam, np.stack([T_A, T_B, T_C]), ratio=spec.ratio,
                                    epipolar_tol_px=spec.epipolar_tol_px)
@@ -312,6 +320,25 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
         ok = _correct(rA, q, XT[m[:, 0]], kT.uv_px[m[:, 0]], r2, q2, X2, k2.uv_px[m[:, 1]], spec.truth_tol_px)
         t.ep["associations"][d] += len(m)
         t.ep["correct"][d] += ok.sum()
+        if d == 0:
+            _persistence(spec, target, cam, T_A, T_B0, q2, sun, r2, k2, XT, img_rngs[n_img + 1], t)
+
+
+def _persistence(spec, target, cam, T_A, T_B, q2, sun, r2, k2, XT, rng, t) -> None:
+    """Tracks of the first cross-view pair that are tracks again after the first epoch change."""
+    vis = _seen_in(r2, q2, XT)
+    rB2, kB2 = _render(cam, T_B, target, q2, sun, rng)
+    if not vis.any() or not rB2.ok or len(kB2) < 2 or len(k2) < 2:
+        return
+    vis &= _seen_in(rB2, q2, XT)
+    t.persist_den += int(vis.sum())
+    m = match_pair(k2, kB2, ratio=spec.ratio, F_AB=fundamental_from_poses(cam.K, T_A, cam.K, T_B),
+                   epipolar_tol_px=spec.epipolar_tol_px)
+    if len(m) == 0:
+        return
+    uv = _project(r2, q2, XT[vis])[0]
+    d = np.linalg.norm(uv[:, None, :] - k2.uv_px[m[:, 0]][None, :, :], axis=2)
+    t.persist_num += int(np.sum(d.min(axis=1) <= spec.truth_tol_px))
 
 
 def _sigma_per_bin(bins: np.ndarray, e2: np.ndarray, nz: int) -> tuple[np.ndarray, np.ndarray]:
@@ -439,6 +466,9 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
             "survival": [_ratio(t.cv["correct"], t.cv["matchable"]) for t in per_range],
             "false_match_rate": [_ratio(t.cv["matches"] - t.cv["correct"], t.cv["matches"]) for t in per_range],
             "two_view_tracks": [t.tracks2 for t in per_range],
+            "persistent_tracks": [t.persist_num for t in per_range],
+            "persistence_candidates": [t.persist_den for t in per_range],
+            "persistence": [None if not t.persist_den else t.persist_num / t.persist_den for t in per_range],
             "three_view_tracks": [t.tracks3 for t in per_range],
         },
         "association": {

@@ -9,7 +9,11 @@ from tests.vision.geometric_three_cameras import three_cameras
 from vision.calibration import load_calibration
 from vision.camera import PinholeCamera
 from vision.geometric import observe_epochs, surface_features
-from vision.geometric_calibrated import calibrated_feature_count, pair_copula_correlation
+from vision.geometric_calibrated import (
+    calibrated_feature_count,
+    pair_copula_correlation,
+    temporal_correlation,
+)
 
 CAM = PinholeCamera.from_fov(1024, 1024, fov_x_deg=20.0)
 SUN = np.array([1.0, -0.5, 0.6])
@@ -76,6 +80,17 @@ def test_copula_correlation_reproduces_the_three_over_two_view_track_ratio(survi
     z = np.sqrt(rho) * rng.standard_normal((n, 1)) + np.sqrt(1 - rho) * rng.standard_normal((n, 3))
     match = ndtr(z) < survival
     assert abs(match.any(axis=1).mean() / match[:, 0].mean() - 1.6) < 0.05
+
+
+@pytest.mark.parametrize(("persistence", "survival"), [(0.52, 0.43), (0.43, 0.2)])
+def test_temporal_correlation_makes_matches_persist_at_the_asked_rate(persistence, survival):
+    """Monte Carlo of an AR(1) pair variable over two epochs: P(match again | match) as asked."""
+    rho = temporal_correlation(persistence, survival)
+    rng = np.random.default_rng(1)
+    z0 = rng.standard_normal(200_000)
+    z1 = rho * z0 + np.sqrt(1 - rho**2) * rng.standard_normal(z0.size)
+    m0, m1 = ndtr(z0) < survival, ndtr(z1) < survival
+    assert abs(np.mean(m1[m0]) - persistence) < 0.01 and abs(m1.mean() - survival) < 0.005
 
 
 def test_fixed_model_is_the_default_and_refuses_unknown_noise_models(fy1):

@@ -112,6 +112,9 @@ class SiftCalibration:
     material_factor : ndarray (R, P)
         Density of each of the target's P materials over the target's mean (area-weighted mean 1;
         1 for materials with less than 2 m² seen).
+    track_persistence : ndarray (R,)
+        Fraction of the tracks of two cameras at the first cross-view angle that are tracks of the
+        same cameras again after the first epoch change (NaN where not measured).
     measured_cell : ndarray (R, V, S) bool
         Density cells with enough surface seen to be measured (the others are the product of the
         view and Sun marginals).
@@ -132,6 +135,7 @@ class SiftCalibration:
     association_survival: np.ndarray
     false_association_rate: np.ndarray
     three_over_two_ratio: float
+    track_persistence: np.ndarray
     measured_cell: np.ndarray
     material_factor: np.ndarray
     provenance: dict
@@ -168,6 +172,8 @@ class SiftCalibration:
             association_survival=_table(_conditional(t["association"]["correct"], t["association"]["redetected"])),
             false_association_rate=_table(t["association"]["false_rate"]),
             measured_cell=area >= _MIN_CELL_AREA_M2,
+            track_persistence=np.array([np.nan if v is None else float(v) for v in
+                                        t["cross_view"].get("persistence", [None] * len(t["ranges_m"]))]),
             material_factor=_material_factor(t),
             three_over_two_ratio=(float(sum(t["cross_view"]["three_view_tracks"]))
                                   / max(1.0, float(sum(t["cross_view"]["two_view_tracks"])))),
