@@ -128,6 +128,8 @@ class AttitudeSmoother:
         self._all = gtsam.NonlinearFactorGraph()
         self._t: list[float] = []
         self._pending_cov: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._marginal_cache: dict[int, np.ndarray] = {}
+        self._rate_cache: dict[int, np.ndarray] = {}
         self._frame_cov: dict[int, np.ndarray] = {}
 
     def _params(self, *, dogleg: bool) -> gtsam.ISAM2Params:
@@ -230,8 +232,10 @@ class AttitudeSmoother:
         # epoch's plus its rate uncertainty carried over dt (cross terms dropped)
         cY = self._pending_cov.get(k - 1)
         if cY is None:
-            cY = self._isam.marginalCovariance(Y(k - 1))
-            cW = self._isam.marginalCovariance(W(k - 1))
+            cY = self._marginal_Y(k - 1)
+            cW = self._rate_cache.pop(k - 1, None)
+            if cW is None:
+                cW = self._isam.marginalCovariance(W(k - 1))
         else:
             cY, cW = cY
         self._pending_cov = {k: (cY + dt * dt * (R @ cW @ R.T), cW)}
@@ -257,10 +261,15 @@ class AttitudeSmoother:
         return GateResult(accepted=bool(np.isfinite(c2) and c2 <= thr), chi2=c2, threshold=thr)
 
     def _marginal_Y(self, k: int) -> np.ndarray:
-        """Marginal covariance of ``Y_k`` (predicted when the epoch awaits its first update)."""
+        """Covariance of ``Y_k`` for the gate: predicted while the epoch awaits its first update, else the
+        marginal last computed for it (at that epoch, by :meth:`covariance_T`: the filtered one, which
+        only shrinks later; an old variable's marginal costs a pass over the Bayes tree)."""
         if k in self._pending_cov:
             return self._pending_cov[k][0]
-        return self._isam.marginalCovariance(Y(k))
+        c = self._marginal_cache.get(k)
+        if c is None:
+            c = self._marginal_cache[k] = self._isam.marginalCovariance(Y(k))
+        return c
 
     def add_frame(self, k: int, cov_frame_N: np.ndarray) -> None:
         """The cloud orientation ``B_k`` of epoch ``k``'s frame, with its covariance (left, N, rad²); once per epoch."""
@@ -322,8 +331,9 @@ class AttitudeSmoother:
     def covariance_T(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Marginal covariances at epoch ``k``: body-frame attitude error (rad²) and rate (rad²/s²)."""
         R, _ = self.estimate(k)
-        c_eps = self._isam.marginalCovariance(Y(k))
-        return R.T @ c_eps @ R, self._isam.marginalCovariance(W(k))
+        c_eps = self._marginal_cache[k] = self._isam.marginalCovariance(Y(k))
+        c_w = self._rate_cache[k] = self._isam.marginalCovariance(W(k))
+        return R.T @ c_eps @ R, c_w
 
     def batch(self) -> tuple[np.ndarray, np.ndarray, InertiaShape]:
         """Levenberg–Marquardt on the whole graph from the iSAM2 estimate (the smoothed solution).

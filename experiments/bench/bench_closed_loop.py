@@ -74,7 +74,6 @@ def _per_epoch(quick: bool) -> BenchRow:
         sm.start(0.0, R[0], np.eye(3) * 1e-8, w[0], np.eye(3) * 1e-6)
         for k in range(1, T):
             sm.add_epoch(t[k])
-            sm.update()
             for j in [k - 1] + ([k - 80] if k >= 80 and k % 4 == 0 else []):
                 meas = matrix_from_quat(quat_from_rotvec(noise[k])) @ R[k] @ R[j].T
                 if sm.gate(j, k, meas, C).accepted:
