@@ -26,12 +26,35 @@ from closed_loop.registrars import Registrar
 from filters import AttitudeFilter, FilterState
 from formation.quality import camera_poses_at_target
 
-__all__ = ["ClosedLoop", "ClosedLoopResult", "Snapshot"]
+__all__ = ["ClosedLoop", "ClosedLoopResult", "Snapshot", "observer_tracks", "observe_epoch"]
 
 INITIAL_EPOCH = "initial epoch"
 SET_CHANGED = "observer set changed"
 NO_COVARIANCE = "increment covariance unavailable"
 NO_PREVIOUS = "previous epoch not observed"
+
+
+def observer_tracks(T: int, r_H: np.ndarray, active: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """The observers' positions ``(S, T, 3)`` (station-kept ``(S, 3)`` broadcast) and the active mask
+    ``(T, S)`` (default: all), checked against each other."""
+    r_H = np.asarray(r_H, dtype=float)
+    if r_H.ndim == 2:
+        r_H = np.broadcast_to(r_H[:, None, :], (r_H.shape[0], T, 3))
+    S = r_H.shape[0]
+    active = np.ones((T, S), bool) if active is None else np.asarray(active, dtype=bool)
+    if active.shape != (T, S) or r_H.shape != (S, T, 3):
+        raise ValueError(f"active: expected shape ({T}, {S}) and r_H ({S}, {T}, 3), got {active.shape} "
+                         f"and {r_H.shape}")
+    return r_H, active
+
+
+def observe_epoch(observer: Observer, r_CT_H: np.ndarray, q_HT: np.ndarray, sun_H: np.ndarray,
+                  illumination: float, rng: np.random.Generator) -> tuple[Frame, np.ndarray]:
+    """One epoch seen by the active observers at ``r_CT_H (n, 3)``, pointed at the target, and
+    triangulated: ``(frame, T_CW)``."""
+    T_CW = camera_poses_at_target(r_CT_H)
+    obs = observer.observe(T_CW, q_HT, sun_H, rng=rng, sun_visible_fraction=illumination)
+    return reconstruct(obs), T_CW
 
 
 @dataclass(frozen=True)
@@ -199,14 +222,8 @@ class ClosedLoop:
         ClosedLoopResult
         """
         T = len(t_s)
-        r_H = np.asarray(r_H, dtype=float)
-        if r_H.ndim == 2:
-            r_H = np.broadcast_to(r_H[:, None, :], (r_H.shape[0], T, 3))
+        r_H, active = observer_tracks(T, r_H, active)
         S = r_H.shape[0]
-        active = np.ones((T, S), bool) if active is None else np.asarray(active, dtype=bool)
-        if active.shape != (T, S) or r_H.shape != (S, T, 3):
-            raise ValueError(f"active: expected shape ({T}, {S}) and r_H ({S}, {T}, 3), got {active.shape} "
-                             f"and {r_H.shape}")
         obs_rngs = rng_observe.spawn(T)
         filt = self.estimator
         state = filt.clone(initial_state)
@@ -234,11 +251,9 @@ class ClosedLoop:
             used[k] = act
             frame = None
             if act.sum() >= self.min_observers:
-                T_CW = camera_poses_at_target(r_H[act, k])
-                obs = self.observer.observe(T_CW, q_HT[k], sun_H[k], rng=obs_rngs[k],
-                                            sun_visible_fraction=float(illumination[k]))
-                frame = reconstruct(obs)
-                n_tracks[k] = obs.n_tracks
+                frame, T_CW = observe_epoch(self.observer, r_H[act, k], q_HT[k], sun_H[k], float(illumination[k]),
+                                            obs_rngs[k])
+                n_tracks[k] = frame.obs.n_tracks
                 n_points[k] = int(np.sum(frame.tri.n_valid))
                 if snapshot_from is not None and k >= snapshot_from and snap is None and frame.ok:
                     snap = Snapshot(k, T_CW, frame, np.flatnonzero(act), sun_H[k])

@@ -22,15 +22,21 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from attitude.quaternion import matrix_from_quat, quat_angle_between, quat_from_matrix
-from closed_loop.frames import Frame, reconstruct
-from closed_loop.loop import INITIAL_EPOCH, SET_CHANGED, ClosedLoopResult, Snapshot
+from closed_loop.frames import Frame
+from closed_loop.loop import (
+    INITIAL_EPOCH,
+    SET_CHANGED,
+    ClosedLoopResult,
+    Snapshot,
+    observe_epoch,
+    observer_tracks,
+)
 from closed_loop.observers import Observer
 from closed_loop.reacquisition import register_by_geometry
 from closed_loop.registrars import Registrar, RegistrationIncrement
 from closed_loop.smoother import AttitudeSmoother, SmootherSettings
 from closed_loop.target_model import ModelSettings, TargetModel
 from filters import AttitudeFilter, FilterState
-from formation.quality import camera_poses_at_target
 
 __all__ = ["SmoothingLoop", "SmootherStart"]
 
@@ -96,14 +102,8 @@ class SmoothingLoop:
         """Run over ``T`` epochs; the arguments are those of :meth:`closed_loop.ClosedLoop.run`, with
         the smoother's prior ``start`` in place of a filter state."""
         T = len(t_s)
-        r_H = np.asarray(r_H, dtype=float)
-        if r_H.ndim == 2:
-            r_H = np.broadcast_to(r_H[:, None, :], (r_H.shape[0], T, 3))
+        r_H, active = observer_tracks(T, r_H, active)
         S = r_H.shape[0]
-        active = np.ones((T, S), bool) if active is None else np.asarray(active, dtype=bool)
-        if active.shape != (T, S) or r_H.shape != (S, T, 3):
-            raise ValueError(f"active: expected shape ({T}, {S}) and r_H ({S}, {T}, 3), got {active.shape} "
-                             f"and {r_H.shape}")
         obs_rngs = rng_observe.spawn(T)
         sm = AttitudeSmoother(J_prior_kg_m2=np.asarray(self.J_prior_kg_m2, float), settings=self.settings)
         sm.start(float(t_s[0]), matrix_from_quat(start.q_NT), start.cov_attitude_T, start.omega_TN_T_rad_s,
@@ -124,11 +124,9 @@ class SmoothingLoop:
             why = "" if inactive_reason is None else str(inactive_reason[k])
             frame = None
             if act.sum() >= self.min_observers:
-                T_CW = camera_poses_at_target(r_H[act, k])
-                obs = self.observer.observe(T_CW, q_HT[k], sun_H[k], rng=obs_rngs[k],
-                                            sun_visible_fraction=float(illumination[k]))
-                frame = reconstruct(obs)
-                rec.n_tracks[k] = obs.n_tracks
+                frame, T_CW = observe_epoch(self.observer, r_H[act, k], q_HT[k], sun_H[k], float(illumination[k]),
+                                            obs_rngs[k])
+                rec.n_tracks[k] = frame.obs.n_tracks
                 rec.n_points[k] = int(np.sum(frame.tri.n_valid))
                 if snapshot_from is not None and k >= snapshot_from and snap is None and frame.ok:
                     snap = Snapshot(k, T_CW, frame, np.flatnonzero(act), sun_H[k])
