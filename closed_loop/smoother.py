@@ -71,6 +71,9 @@ class SmootherSettings:
     dogleg_epochs : int
         With the inertia estimated, the first this many epochs are solved with Powell's dogleg,
         then Gauss–Newton takes over.
+    warmup_batch_every : int
+        During those epochs, every this many epochs the whole graph is re-solved by
+        Levenberg–Marquardt and iSAM2 restarted there (0: never).
     """
 
     estimate_inertia: bool = True
@@ -84,6 +87,7 @@ class SmootherSettings:
     relinearize_threshold_inertia: float = 1e-3
     relinearize_skip: int = 10
     dogleg_epochs: int = 120
+    warmup_batch_every: int = 20
 
 
 @dataclass(frozen=True)
@@ -314,12 +318,28 @@ class AttitudeSmoother:
         self._graph = gtsam.NonlinearFactorGraph()
         self._values = gtsam.Values()
         self._pending_cov = {}
+        every = self.settings.warmup_batch_every
+        if self._dogleg and every and self.n_epochs % every == 0 and self.n_epochs < self.settings.dogleg_epochs:
+            # while the inertia shape is young, re-solve the whole graph to convergence and restart
+            # iSAM2 there (one step per update can lag far behind the optimum in this phase)
+            self._restart(self._solve_batch(), dogleg=True)
         if self._dogleg and self.n_epochs >= self.settings.dogleg_epochs:
-            # hand over to Gauss-Newton: a new iSAM2 on the whole graph from the dogleg's estimate
-            est = self._isam.calculateEstimate()
-            self._isam = gtsam.ISAM2(self._params(dogleg=False))
-            self._isam.update(self._all, est)
+            # hand over to Gauss-Newton: a new iSAM2 on the whole graph from the converged solution
+            self._restart(self._solve_batch() if every else self._isam.calculateEstimate(), dogleg=False)
             self._dogleg = False
+
+    def _solve_batch(self) -> gtsam.Values:
+        """Levenberg–Marquardt on the whole graph from the current estimate."""
+        params = gtsam.LevenbergMarquardtParams()
+        params.setMaxIterations(50)
+        return gtsam.LevenbergMarquardtOptimizer(self._all, self._isam.calculateEstimate(), params).optimize()
+
+    def _restart(self, values: gtsam.Values, *, dogleg: bool) -> None:
+        """A new iSAM2 on the whole graph, linearised at ``values`` (the marginals cache is dropped)."""
+        self._isam = gtsam.ISAM2(self._params(dogleg=dogleg))
+        self._isam.update(self._all, values)
+        self._marginal_cache.clear()
+        self._rate_cache.clear()
 
     # ---------------------------------------------------------------- reading
     def estimate(self, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -344,9 +364,7 @@ class AttitudeSmoother:
         omega_T : ndarray (T, 3)
         inertia : InertiaShape
         """
-        params = gtsam.LevenbergMarquardtParams()
-        params.setMaxIterations(50)
-        res = gtsam.LevenbergMarquardtOptimizer(self._all, self._isam.calculateEstimate(), params).optimize()
+        res = self._solve_batch()
         T = self.n_epochs
         R = np.stack([res.atRot3(Y(k)).matrix().T for k in range(T)])
         w = np.stack([res.atVector(W(k)) for k in range(T)])
