@@ -248,6 +248,16 @@ def _mip_level(tex: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return np.where(valid, level, 0.0).astype(np.float32)
 
 
+def _check_light(sun_visible_fraction: float, ambient: float) -> float:
+    """The visible Sun fraction as a float, after checking it and the ambient level."""
+    f_sun = float(sun_visible_fraction)
+    if not 0.0 <= f_sun <= 1.0:
+        raise ValueError(f"sun_visible_fraction must be in [0, 1], got {sun_visible_fraction!r}")
+    if not (np.isfinite(ambient) and ambient >= 0):
+        raise ValueError(f"ambient must be >= 0, got {ambient!r}")
+    return f_sun
+
+
 def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLike, sun_H: ArrayLike,
            *, rng: np.random.Generator | int | None = None, sensor: SensorModel | None = None,
            sun_visible_fraction: float = 1.0, ambient: float = 0.0, specular: bool = True,
@@ -287,11 +297,7 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
     RenderResult
     """
     T, q, s_H = _validate(camera, T_CW, target, q_HT, sun_H)
-    f_sun = float(sun_visible_fraction)
-    if not 0.0 <= f_sun <= 1.0:
-        raise ValueError(f"sun_visible_fraction must be in [0, 1], got {sun_visible_fraction!r}")
-    if not (np.isfinite(ambient) and ambient >= 0):
-        raise ValueError(f"ambient must be >= 0, got {ambient!r}")
+    f_sun = _check_light(sun_visible_fraction, ambient)
     sensor = SensorModel() if sensor is None else sensor
     rng = np.random.default_rng(rng)
     H, W = camera.height, camera.width
@@ -474,11 +480,7 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
     if T_all.ndim != 3 or len(T_all) != len(cameras) or len(rngs) != len(cameras):
         raise ValueError(f"cameras, T_CW, rngs: need one each per view, got {len(cameras)}, "
                          f"{T_all.shape}, {len(rngs)}")
-    f_sun = float(sun_visible_fraction)
-    if not 0.0 <= f_sun <= 1.0:
-        raise ValueError(f"sun_visible_fraction must be in [0, 1], got {sun_visible_fraction!r}")
-    if not (np.isfinite(ambient) and ambient >= 0):
-        raise ValueError(f"ambient must be >= 0, got {ambient!r}")
+    f_sun = _check_light(sun_visible_fraction, ambient)
     sensor = SensorModel() if sensor is None else sensor
     views = []
     for cam, T_v, rng in zip(cameras, T_all, rngs, strict=True):
