@@ -20,7 +20,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2
 
-__all__ = ["Evidence", "check_evidence"]
+__all__ = ["Evidence", "check_evidence", "spread_information"]
+
+
+def spread_information(Q: np.ndarray) -> np.ndarray:
+    """``Σ [q̃×]ᵀ[q̃×] = Σ (|q̃|² I − q̃ q̃ᵀ)`` of points ``(k, 3)`` about their centroid: the rotation
+    information of a rigid fit per unit isotropic residual variance."""
+    qc = Q - Q.mean(axis=0)
+    return np.sum(qc * qc) * np.eye(3) - qc.T @ qc
 
 
 @dataclass(frozen=True)
@@ -65,9 +72,7 @@ def check_evidence(P: np.ndarray, Q: np.ndarray, cov_P: np.ndarray, cov_Q: np.nd
     if n < evidence.min_inliers:
         return f"evidence: {n} inlier pairs, fewer than {evidence.min_inliers}"
     q = Q[inl]
-    qc = q - q.mean(axis=0)
-    info = np.sum(qc * qc) * np.eye(3) - qc.T @ qc
-    ev = np.linalg.eigvalsh(info)
+    ev = np.linalg.eigvalsh(spread_information(q))
     cond = float(ev[-1] / ev[0]) if ev[0] > 0 else float("inf")
     if not cond <= evidence.max_condition:
         return f"evidence: inlier geometry condition number {cond:.3g} above {evidence.max_condition:g}"

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from attitude.batch import cross_product_matrices
 from reconstruction.triangulation import Triangulation, triangulate, triangulate_from_observation
 from vision.observation import Observation
 
@@ -54,10 +55,7 @@ class Frame:
             return np.full((3, 3), np.nan)
         X = self.tri.X_W[v]
         W = np.linalg.inv(self.tri.cov_W[v])
-        Xc = X - X.mean(axis=0)
-        S = np.zeros((len(X), 3, 3))
-        S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -Xc[:, 2], Xc[:, 1], -Xc[:, 0]
-        S = S - np.swapaxes(S, 1, 2)  # [Xc×]
+        S = cross_product_matrices(X - X.mean(axis=0))  # [Xc×]
         J = np.concatenate([-S, np.broadcast_to(np.eye(3), S.shape)], axis=2)  # (N, 3, 6)
         info = np.einsum("nki,nkl,nlj->ij", J, W, J)
         return np.linalg.inv(info)[:3, :3]

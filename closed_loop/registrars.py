@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from attitude.quaternion import quat_from_matrix
-from closed_loop.evidence import Evidence, check_evidence
+from closed_loop.evidence import Evidence, check_evidence, spread_information
 from closed_loop.frames import Frame
 from closed_loop.registry import Registry
 from filters import IncrementMeasurement
@@ -283,9 +283,7 @@ def residual_rotation_covariance(P: np.ndarray, Q: np.ndarray, reg: RigidRegistr
     p, q = P[inl], Q[inl]
     r = q - p @ reg.R.T - reg.t
     sigma2 = float(np.sum(r * r) / max(3 * n - 6, 1))
-    qc = q - q.mean(axis=0)
-    info = np.sum(qc * qc) * np.eye(3) - qc.T @ qc  # Σ [q̃×]ᵀ[q̃×] = Σ (|q̃|² I − q̃ q̃ᵀ)
-    return sigma2 * np.linalg.inv(info)
+    return sigma2 * np.linalg.inv(spread_information(q))
 
 
 #: registration method (config ``estimator.registration``) → registrar class

@@ -176,23 +176,19 @@ class SmoothingLoop:
         elif prev is not None:
             reasons.append(SET_CHANGED)
         if model is not None:
-            R_now, _ = sm.estimate(k)
-            cands = model.candidates(k, R_NH[k], r_CT_H, R_now, lambda j: sm.estimate(j)[0], t_s=sm.times[k],
+            cands = model.candidates(k, R_NH[k], r_CT_H, sm.estimate(k)[0], lambda j: sm.estimate(j)[0], t_s=sm.times[k],
                                      everything=reacquire, exclude=(k - 1,))
             for kf, angle in cands:
                 mode = "descriptors" if angle <= model.settings.viewpoint_window_deg else "geometry"
                 tries.append((kf.epoch, kf.frame, kf.R_NH, mode))
+        R_k, _ = sm.estimate(k)  # the prediction: no update within the epoch
         for j, other, R_NH_j, mode in tries:
+            dR_H_pred = R_NH[k].T @ (R_k @ sm.estimate(j)[0].T) @ R_NH_j
             if mode == "geometry":
-                Rj, _ = sm.estimate(j)
-                Rk, _ = sm.estimate(k)
-                dR_H_pred = R_NH[k].T @ (Rk @ Rj.T) @ R_NH_j
                 inc = register_by_geometry(other, frame, dR_H_pred, rng=rng, evidence=self.registrar.evidence)
             else:
-                Rj, _ = sm.estimate(j)
-                Rk, _ = sm.estimate(k)
                 inc = self.registrar.register(other, frame, rng=rng, view_agnostic=mode != "previous",
-                                              R0=R_NH[k].T @ (Rk @ Rj.T) @ R_NH_j)
+                                              R0=dR_H_pred)
             if mode == "previous":
                 rec.n_matches[k] = inc.n_matches
             if not inc.usable:

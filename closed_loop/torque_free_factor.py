@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from attitude.batch import cross_product_matrices
+from attitude.batch import matrices_from_rotvecs, rotvecs_from_matrices
 
 __all__ = ["InertiaShape", "torque_free_factor", "propagate_batch", "rotation_error_T"]
 
@@ -87,16 +87,6 @@ def _euler_rates(w: np.ndarray, J: np.ndarray, J_inv: np.ndarray) -> np.ndarray:
     return -(J_inv @ _cross(w, Jw)[:, :, None])[:, :, 0]
 
 
-def _exp_so3(v: np.ndarray) -> np.ndarray:
-    """Rotation matrices ``(M, 3, 3)`` of rotation vectors ``(M, 3)`` (Rodrigues' formula)."""
-    th = np.linalg.norm(v, axis=-1)[:, None, None]
-    K = cross_product_matrices(v)
-    small = th < 1e-8
-    s = np.where(small, 1.0, np.sin(th) / np.where(small, 1.0, th))
-    c = np.where(small, 0.5, (1 - np.cos(th)) / np.where(small, 1.0, th * th))
-    return np.eye(3) + s * K + c * (K @ K)
-
-
 def propagate_batch(R_NT: np.ndarray, omega_T: np.ndarray, J_T: np.ndarray, dt_s: float,
                     n_substeps: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """RK4 of 003 eq (25)–(27) for a batch of states, each with its own inertia tensor.
@@ -132,7 +122,7 @@ def propagate_batch(R_NT: np.ndarray, omega_T: np.ndarray, J_T: np.ndarray, dt_s
         k4 = _euler_rates(w4, J_T, J_inv)
         # rotation vector over the step: Simpson's rule on the stage rates plus the coning term
         theta = (h / 6.0) * (w + 2.0 * (w2 + w3) + w4) + (h * h / 12.0) * _cross(w, w4)
-        R = R @ _exp_so3(theta)
+        R = R @ matrices_from_rotvecs(theta)
         w = w + (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
     return R, w
 
@@ -144,19 +134,8 @@ def rotation_error_T(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(np.swapaxes(R_est, -1, -2) @ R_true).as_rotvec()
 
 
-def _log_batch(R: np.ndarray) -> np.ndarray:
-    """Rotation vectors of ``(M, 3, 3)`` rotations near the identity (angles below π/2 to full
-    precision: the factor's residuals), by ``θ/(2 sin θ) (R − Rᵀ)^∨``."""
-    v = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], -1)
-    s2 = np.linalg.norm(v, axis=-1)  # 2 sin θ
-    c = np.clip(0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0), -1.0, 1.0)
-    th = np.arctan2(0.5 * s2, c)
-    f = np.where(s2 > 1e-12, th / np.where(s2 > 1e-12, s2, 1.0), 0.5)
-    return v * f[:, None]
-
-
-_EXP_MINUS_H = _exp_so3(-_H * np.eye(3))
-_EXP_PLUS_H = _exp_so3(_H * np.eye(3))
+_EXP_MINUS_H = matrices_from_rotvecs(-_H * np.eye(3))
+_EXP_PLUS_H = matrices_from_rotvecs(_H * np.eye(3))
 
 
 def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, ...], dt_s: float, *,
@@ -218,12 +197,12 @@ def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, ...], dt_s
             diag = np.concatenate([np.ones((M, 1)), np.exp(np.clip(lb, -4.0, 4.0))], -1)
             J = (Ab * diag[:, None, :]) @ np.swapaxes(Ab, 1, 2)
         Rp, wp = propagate_batch(Rb, wb, J, dt_s, n_substeps)
-        r_att = _log_batch(np.swapaxes(Rp, -1, -2) @ R1)
+        r_att = rotvecs_from_matrices(np.swapaxes(Rp, -1, -2) @ R1)
         r = np.concatenate([r_att, w1[None] - wp], -1)
         if want:
             D = (r[1:] - r[0]).T / _H  # (6, 11)
             # derivatives with respect to the later epoch: R₁ ← Exp(−ε) R₁, i.e. body perturbation −R₁ᵀ ε
-            r_eps = _log_batch(np.swapaxes(Rp[:1], -1, -2) @ _EXP_MINUS_H @ R1)
+            r_eps = rotvecs_from_matrices(np.swapaxes(Rp[:1], -1, -2) @ _EXP_MINUS_H @ R1)
             H[0] = D[:, 0:3]
             H[1] = D[:, 3:6]
             H[2] = np.vstack([(r_eps - r_att[0]).T / _H, np.zeros((3, 3))])
