@@ -248,6 +248,15 @@ def _mip_level(tex: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return np.where(valid, level, 0.0).astype(np.float32)
 
 
+def _cast_box(camera: PinholeCamera, T: np.ndarray, target: Target, q: np.ndarray, roi: bool,
+              roi_margin_px: int) -> tuple[tuple[int, int, int, int], str]:
+    """The pixel box rays are cast through (the ROI, or the whole image) and why none is cast."""
+    box, reason = roi_of_target(camera, T, target, q, margin_px=int(roi_margin_px))
+    if roi:
+        return box, reason
+    return (0, 0, camera.width, camera.height), reason if reason == REASON_BEHIND_CAMERA else ""
+
+
 def _check_light(sun_visible_fraction: float, ambient: float) -> float:
     """The visible Sun fraction as a float, after checking it and the ambient level."""
     f_sun = float(sun_visible_fraction)
@@ -310,12 +319,7 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
     lit_img = np.zeros((H, W), dtype=bool)
 
     R_HT = matrix_from_quat(q)
-    if roi:
-        box, reason = roi_of_target(camera, T, target, q, margin_px=int(roi_margin_px))
-    else:
-        box = (0, 0, W, H)
-        _, st = roi_of_target(camera, T, target, q, margin_px=int(roi_margin_px))
-        reason = st if st == REASON_BEHIND_CAMERA else ""
+    box, reason = _cast_box(camera, T, target, q, roi, roi_margin_px)
 
     def result(st: str, exposure_s: float = float("nan")) -> RenderResult:
         return RenderResult(image, radiance, depth, mask, X_img, tri_img, lit_img, box, st, camera, T,
@@ -492,12 +496,7 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
              "depth": np.full((H, W), np.nan, dtype=np.float32), "mask": np.zeros((H, W), dtype=bool),
              "X": np.full((H, W, 3), np.nan, dtype=np.float32), "tri": np.full((H, W), -1, dtype=np.int32),
              "lit": np.zeros((H, W), dtype=bool), "exposure": float("nan")}
-        if roi:
-            box, reason = roi_of_target(cam, T, target, q, margin_px=int(roi_margin_px))
-        else:
-            box = (0, 0, W, H)
-            _, st = roi_of_target(cam, T, target, q, margin_px=int(roi_margin_px))
-            reason = st if st == REASON_BEHIND_CAMERA else ""
+        box, reason = _cast_box(cam, T, target, q, roi, roi_margin_px)
         v["box"], v["reason"] = box, reason
         if not reason:
             x0, y0, x1, y1 = box
