@@ -202,14 +202,12 @@ def _dataset(cfg: Config, tr: TumblingTarget, plan: ObserverPlan, res: ClosedLoo
 
 
 def _nees(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """``eᵀ C⁻¹ e`` per epoch (NaN where the covariance is missing or singular)."""
+    """``eᵀ C⁻¹ e`` per epoch (NaN where the covariance is missing or not positive definite)."""
     out = np.full(len(err), np.nan)
     ok = np.all(np.isfinite(cov), axis=(1, 2)) & np.all(np.isfinite(err), axis=1)
+    ok[ok] = np.all(np.linalg.eigvalsh(0.5 * (cov[ok] + np.swapaxes(cov[ok], 1, 2))) > 0, axis=-1)
     if ok.any():
-        try:
-            out[ok] = np.einsum("ti,ti->t", err[ok], np.linalg.solve(cov[ok], err[ok][..., None])[..., 0])
-        except np.linalg.LinAlgError:
-            pass
+        out[ok] = np.einsum("ti,ti->t", err[ok], np.linalg.solve(cov[ok], err[ok][..., None])[..., 0])
     return out
 
 
