@@ -74,10 +74,6 @@ class RegistrationIncrement:
     ok : bool
     failure_reason : str
         ``""`` when ok.
-    variance_factor : float
-        The fit's a-posteriori variance factor ``χ² / (3n − 6)`` of its inlier residuals against
-        their covariances (NaN when the fit gives no χ²): above 1, the points' covariances
-        understate their errors.
     """
 
     R_H: np.ndarray
@@ -86,7 +82,6 @@ class RegistrationIncrement:
     n_inliers: int
     ok: bool
     failure_reason: str
-    variance_factor: float = float("nan")
 
     @classmethod
     def failed(cls, failure_reason: str, n_matches: int = 0) -> RegistrationIncrement:
@@ -204,10 +199,8 @@ class Registrar(ABC):
         cov = reg.cov[:3, :3]
         if with_covariance and not np.all(np.isfinite(cov)):
             cov = residual_rotation_covariance(pairs.P_H, pairs.Q_H, reg)
-        dof = float(np.asarray(reg.dof))
-        vf = float(np.asarray(reg.chi2)) / dof if dof > 0 else float("nan")
         return RegistrationIncrement(R_H=reg.R, cov_rotvec_H=cov, n_matches=k, n_inliers=int(reg.n_inliers),
-                                     ok=True, failure_reason="", variance_factor=vf)
+                                     ok=True, failure_reason="")
 
 
 @dataclass(frozen=True)
