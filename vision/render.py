@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike
 
 from attitude.quaternion import check_quat, matrix_from_quat
 from vision.camera import PinholeCamera, check_pose
+from vision.earth import EarthScene
 from vision.observation import REASON_EARTH_SHADOW, REASON_OUTSIDE_FOV
 from vision.render_result import RenderResult
 from vision.sensor import SensorModel
@@ -187,7 +188,8 @@ def _check_light(sun_visible_fraction: float, ambient: float) -> float:
 def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLike, sun_H: ArrayLike,
            *, rng: np.random.Generator | int | None = None, sensor: SensorModel | None = None,
            sun_visible_fraction: float = 1.0, ambient: float = 0.0, specular: bool = True,
-           shadows: bool = True, roi: bool = True, roi_margin_px: int = 16) -> RenderResult:
+           shadows: bool = True, roi: bool = True, roi_margin_px: int = 16,
+           earth: EarthScene | None = None) -> RenderResult:
     """Render the target seen by one camera, with per-pixel ground truth.
 
     Parameters
@@ -213,6 +215,9 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
         Diffuse ambient illumination (e.g. Earthshine) in units of the direct Sun, >= 0.
     specular, shadows : bool
         Include the Blinn–Phong specular term and the self-shadowing occlusion rays.
+    earth : EarthScene, optional
+        The Earth behind the target in the ROI and its albedo light on the target (:mod:`vision.earth`);
+        None: black sky, no Earth light.
     roi : bool
         Ray-cast only the region of interest (True) or the full frame (False).
     roi_margin_px : int
@@ -296,10 +301,14 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
         hvec /= np.maximum(np.linalg.norm(hvec, axis=1, keepdims=True), 1e-12)
         L = L + ks * np.maximum(np.sum(n * hvec, axis=1), 0.0) ** ns * lit
     L = f_sun * L + ambient * albedo
+    if earth is not None:
+        L = L + albedo * earth.albedo_irradiance(n @ R_HT.T, s_H)
     # place into the full-size images
     rs = (slice(y0, y1), slice(x0, x1))
     rad_roi = np.zeros((h, w), dtype=np.float32)
     rad_roi[hit] = L
+    if earth is not None:
+        rad_roi[~hit] = earth.background(camera, T, box, s_H)[~hit]
     radiance[rs] = rad_roi
     sub = depth[rs]
     sub[hit] = z
@@ -377,7 +386,8 @@ def _coverage(camera: PinholeCamera, target: Target, c_T: np.ndarray, R_TC: np.n
 def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, q_HT: ArrayLike,
                  sun_H: ArrayLike, *, rngs: list[np.random.Generator], sensor: SensorModel | None = None,
                  sun_visible_fraction: float = 1.0, ambient: float = 0.0, specular: bool = True,
-                 shadows: bool = True, roi: bool = True, roi_margin_px: int = 16) -> list[RenderResult]:
+                 shadows: bool = True, roi: bool = True, roi_margin_px: int = 16,
+                 earth: EarthScene | None = None) -> list[RenderResult]:
     """:func:`render` of the n views of one epoch in one call: the same :class:`RenderResult` per view.
 
     The rays of all views go to Open3D in one ``cast_rays`` call and the shadow rays in one
@@ -392,7 +402,7 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
         Camera poses (world = Hill frame H).
     rngs : list of n Generator
         The sensor-noise stream of each view (what :func:`render` takes as ``rng``).
-    target, q_HT, sun_H, sensor, sun_visible_fraction, ambient, specular, shadows, roi, roi_margin_px :
+    target, q_HT, sun_H, sensor, sun_visible_fraction, ambient, specular, shadows, roi, roi_margin_px, earth :
         As in :func:`render`.
     """
     import open3d as o3d
@@ -498,11 +508,15 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
             hvec /= np.maximum(np.linalg.norm(hvec, axis=1, keepdims=True), 1e-12)
             L = L + ks * np.maximum(np.sum(n * hvec, axis=1), 0.0) ** ns * lit
         L = f_sun * L + ambient * albedo
+        if earth is not None:
+            L = L + albedo * earth.albedo_irradiance(n @ R_HT.T, s_H)
         x0, y0, x1, y1 = v["box"]
         hit = v["hit"]
         rs = (slice(y0, y1), slice(x0, x1))
         rad_roi = np.zeros(hit.shape, dtype=np.float32)
         rad_roi[hit] = L
+        if earth is not None:
+            rad_roi[~hit] = earth.background(v["cam"], v["T"], v["box"], s_H)[~hit]
         v["radiance"][rs] = rad_roi
         v["depth"][rs][hit] = v["z"]
         v["mask"][rs] = hit
