@@ -73,6 +73,11 @@ class RenderedObserver(Observer):
     noise_model : str
         ``"fixed"``: every keypoint gets ``pixel_sigma_px``; ``"calibrated"``: each keypoint the σ
         measured for its SIFT size (:mod:`vision.calibration`).
+    earth_background : bool
+        The Earth behind the target and its albedo light (:class:`vision.earth.EarthScene`, drawn once
+        from ``earth_seed`` for a target ``orbit_radius_m`` from the Earth's centre, mean albedo ``earth_albedo``).
+    glints : bool
+        Glint lobes on MLI and solar cells (:func:`vision.glints.with_glints`).
     """
 
     camera: PinholeCamera
@@ -80,15 +85,36 @@ class RenderedObserver(Observer):
     pixel_sigma_px: float = 0.5
     detector: str = "sift"
     noise_model: str = "fixed"
+    earth_background: bool = False
+    earth_albedo: float = 0.3
+    glints: bool = False
+    orbit_radius_m: float = 6_378_137.0 + 870e3
+    earth_seed: int = 0
 
     def observe(self, T_CW: np.ndarray, q_HT: np.ndarray, sun_H: np.ndarray, *, rng: np.random.Generator,
                 sun_visible_fraction: float = 1.0) -> Observation:
         """Render every camera's image and match the features across the views (see :meth:`Observer.observe`)."""
         from vision.rendered import observe
 
-        return observe(self.camera, T_CW, self.target, q_HT, _unit(sun_H), rng=rng, detector=self.detector,
+        earth = _earth(self.orbit_radius_m, self.earth_albedo, self.earth_seed) if self.earth_background else None
+        target = _glint_target(self.target) if self.glints else self.target
+        return observe(self.camera, T_CW, target, q_HT, _unit(sun_H), rng=rng, detector=self.detector,
                        pixel_sigma_px=self.pixel_sigma_px, sun_visible_fraction=sun_visible_fraction,
-                       noise_model=self.noise_model)
+                       noise_model=self.noise_model, earth=earth)
+
+
+@functools.lru_cache(maxsize=4)
+def _earth(orbit_radius_m: float, albedo: float, seed: int):
+    from vision.earth import EarthScene
+
+    return EarthScene(orbit_radius_m, np.random.default_rng(seed), albedo=albedo)
+
+
+@functools.lru_cache(maxsize=4)
+def _glint_target(target: Target) -> Target:
+    from vision.glints import with_glints
+
+    return with_glints(target)
 
 
 @functools.lru_cache(maxsize=4)

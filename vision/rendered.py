@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 from attitude.quaternion import matrix_from_quat
 from vision.calibration import SiftCalibration, load_calibration
 from vision.camera import PinholeCamera, cameras_per_view, check_pose
+from vision.earth import EarthScene
 from vision.features import Keypoints, detect, match_views
 from vision.observation import REASON_OUTSIDE_FOV, Observation
 from vision.render import (
@@ -200,7 +201,7 @@ def observe(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, ta
             pixel_sigma_px: float = 0.5, min_views: int = 2, truth_tol_px: float = 2.0,
             roi: bool = True, guided: bool = False,
             detector_options: dict | None = None, noise_model: str = "fixed",
-            calibration: SiftCalibration | None = None) -> Observation:
+            calibration: SiftCalibration | None = None, earth: EarthScene | None = None) -> Observation:
     """Rendered-mode observation of one epoch by n cameras.
 
     Parameters
@@ -233,6 +234,8 @@ def observe(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, ta
     noise_model, calibration :
         ``"fixed"`` (``pixel_sigma_px`` for every keypoint) or ``"calibrated"`` (σ per keypoint from
         its SIFT size, :func:`observe_renders`).
+    earth : EarthScene, optional
+        The Earth behind the target and its albedo light (:mod:`vision.earth`); None: black sky.
 
     Returns
     -------
@@ -241,7 +244,7 @@ def observe(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, ta
     if noise_model not in NOISE_MODELS:
         raise ValueError(f"noise_model must be one of {NOISE_MODELS}, got {noise_model!r}")
     renders = render_views(camera, T_CW, target, q_HT, sun_H, rng=rng, sensor=sensor,
-                           sun_visible_fraction=sun_visible_fraction, roi=roi)
+                           sun_visible_fraction=sun_visible_fraction, roi=roi, earth=earth)
     return observe_renders(renders, target, q_HT, detector=detector, ratio=ratio,
                            epipolar_tol_px=epipolar_tol_px, pixel_sigma_px=pixel_sigma_px,
                            min_views=min_views, truth_tol_px=truth_tol_px, guided=guided,

@@ -271,6 +271,13 @@ class ObservationConfig(ConfigTable):
         "fixed", description="fixed: pixel_sigma_px (and false_match_fraction) as given; calibrated: as measured on "
         "rendered images by 'coobs calibrate' (rendered: sigma per keypoint from its SIFT size; geometric: also "
         "detection, match/association survival and false rates)")
+    earth_background: Flag = Field(
+        False, description="rendered mode: the Earth (seeded procedural ocean, land and clouds lit by the Sun; "
+        "vision.earth) behind the target where the cameras look down at it, and its albedo light on the target")
+    earth_albedo: FiniteFloat = Field(0.3, ge=0, le=1.0, description="rendered mode with earth_background: the "
+                                      "Earth's mean albedo (its light on the target and the texture's scale)")
+    glints: Flag = Field(False, description="rendered mode: sharp, saturating specular glints on MLI and solar "
+                         "cells (vision.glints) instead of the targets' mild specular term")
 
     _c_sun = field_validator("sun_H")(_vec(3))
 
@@ -280,6 +287,14 @@ class ObservationConfig(ConfigTable):
         if not math.hypot(*v) > 1e-12:
             raise ValueError("the direction to the Sun must not be zero (norm above 1e-12)")
         return v
+
+    @model_validator(mode="after")
+    def _rendered_only(self) -> ObservationConfig:
+        for key in ("earth_background", "glints"):
+            if getattr(self, key) and self.mode != "rendered":
+                raise ValueError(f"{key}: true needs mode = 'rendered' (the {self.mode} mode draws no images), "
+                                 f"got mode {self.mode!r}")
+        return self
 
 
 class EstimatorConfig(ConfigTable):

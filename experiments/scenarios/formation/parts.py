@@ -66,6 +66,8 @@ def make_observer(cfg: Config, camera: PinholeCamera | None = None, target: Targ
     cls = OBSERVERS[cfg.observation.mode]
     names = {f.name for f in dataclasses.fields(cls)} - {"camera", "target"}
     options = {k: v for k, v in cfg.observation.model_dump().items() if k in names}
+    if "orbit_radius_m" in names:   # the rendered mode's Earth below the target's orbit, seeded from the config
+        options.update(orbit_radius_m=R_EARTH_M + 1e3 * cfg.formation.orbit_altitude_km, earth_seed=cfg.seed)
     return cls(camera=camera if camera is not None else make_camera(cfg),
                target=target if target is not None else load_target(cfg), **options)
 
