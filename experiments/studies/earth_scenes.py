@@ -3,8 +3,9 @@
 ``python -m experiments.studies.earth_scenes`` renders each target at each range in ``attitudes``
 random attitudes, each with its own Sun, seen by three cameras looking down at the target with the
 Earth behind it (camera A within ``zenith_max_deg`` of the zenith; B at ``cross_view_deg`` from A; C at
-the same angle from both), in three scenes with the same attitudes, Sun, cameras and sensor-noise
-streams:
+the same angle from both), with the Sun at most ``sun_phase_max_deg`` from camera A and at least
+``sun_elevation_min_deg`` above the target's local horizontal (the ground behind the target in
+daylight), in three scenes with the same attitudes, Sun, cameras and sensor-noise streams:
 
 * ``black``: black sky, the targets' default materials (the rendered mode's default);
 * ``earth``: the Earth behind the target and its albedo light (:class:`vision.earth.EarthScene`);
@@ -44,7 +45,7 @@ from vision.glints import with_glints
 from vision.rendered import detect_views, label_tracks, render_views
 from vision.target import Target, fy1_target, load_mesh
 
-__all__ = ["SceneSpec", "SCENES", "measure", "format_table", "main"]
+__all__ = ["SceneSpec", "SCENES", "measure", "format_table", "scene_figure", "main"]
 
 SCENES = ("black", "earth", "glints")
 _COUNTS = ("kp_target", "kp_background", "tracks", "false", "false_background", "epochs", "assoc", "assoc_false")
@@ -60,6 +61,7 @@ class SceneSpec:
     cross_view_deg: float = 10.0
     zenith_max_deg: float = 40.0
     sun_phase_max_deg: float = 120.0
+    sun_elevation_min_deg: float = 10.0
     epoch_change_deg: float = 4.0
     orbit_altitude_km: float = 870.0
     earth_albedo: float = 0.3
@@ -89,11 +91,14 @@ def _cameras(g: np.random.Generator, range_m: float, spec: SceneSpec) -> tuple[n
     return np.stack(T), eA
 
 
-def _sun(g: np.random.Generator, eA: np.ndarray, phase_max_deg: float) -> np.ndarray:
+def _sun(g: np.random.Generator, eA: np.ndarray, spec: SceneSpec) -> np.ndarray:
+    """A Sun direction within the phase limit of camera A and at least ``sun_elevation_min_deg`` above the
+    target's local horizontal (the ground below in daylight)."""
     while True:
         s = g.normal(size=3)
         s /= np.linalg.norm(s)
-        if np.degrees(np.arccos(np.clip(s @ eA, -1, 1))) <= phase_max_deg:
+        if (np.degrees(np.arccos(np.clip(s @ eA, -1, 1))) <= spec.sun_phase_max_deg
+                and s[0] >= np.sin(np.radians(spec.sun_elevation_min_deg))):
             return s
 
 
@@ -153,14 +158,48 @@ def _associate(rA, kA, idx: np.ndarray, cam: PinholeCamera, T_A: np.ndarray, tar
     out["assoc_false"] += float((~ok).sum())
 
 
+def _earth(spec: SceneSpec, seed: np.random.SeedSequence) -> EarthScene:
+    return EarthScene(EARTH_RADIUS_M + 1e3 * spec.orbit_altitude_km, np.random.default_rng(seed),
+                      albedo=spec.earth_albedo)
+
+
+def scene_figure(path: str, spec: SceneSpec = SceneSpec(), *, target: str = "fy1", range_m: float = 40.0,
+                 attitude: int = 0) -> None:
+    """Write camera A's image of one attitude of the study in the three scenes, side by side (PNG, 8 bit)."""
+    import cv2
+
+    cam = PinholeCamera.from_fov(spec.image_px, spec.image_px, fov_x_deg=spec.fov_deg)
+    s_earth, s_cells = child_seeds(np.random.SeedSequence(spec.seed), 2)
+    earth = _earth(spec, s_earth)
+    cells = [(t, r) for t in spec.targets for r in spec.ranges_m]
+    ss = child_seeds(s_cells, len(cells))[cells.index((target, range_m))]
+    s_geo, s_img = child_seeds(child_seeds(ss, spec.attitudes)[attitude], 2)
+    g = np.random.default_rng(s_geo)
+    q = quat_normalize(g.normal(size=4))
+    T, eA = _cameras(g, range_m, spec)
+    sun = _sun(g, eA, spec)
+    plain = _target(target)
+    images = []
+    for scene in SCENES:
+        tgt = with_glints(plain) if scene == "glints" else plain
+        r = render_views(cam, T[:1], tgt, q, sun, rng=np.random.default_rng(s_img).spawn(2)[0],
+                         earth=earth if scene == "earth" else None)[0]
+        images.append(r.image[r.roi_slices])
+    h = min(i.shape[0] for i in images)
+    w = min(i.shape[1] for i in images)
+    gap = np.full((h, 8), 255, dtype=np.uint8)
+    row = [images[0][:h, :w], gap, images[1][:h, :w], gap, images[2][:h, :w]]
+    if not cv2.imwrite(str(path), np.hstack(row)):
+        raise OSError(f"could not write {path}")
+
+
 def measure(spec: SceneSpec = SceneSpec(), *, progress=None) -> list[dict]:
     """One row per target, range, scene and view count: the counts of the module docstring, summed over
     the attitudes (``epochs`` of them), with ``cpu_s`` of the cell's rendering and matching."""
     cam = PinholeCamera.from_fov(spec.image_px, spec.image_px, fov_x_deg=spec.fov_deg)
     root = np.random.SeedSequence(spec.seed)
     s_earth, s_cells = child_seeds(root, 2)
-    earth = EarthScene(EARTH_RADIUS_M + 1e3 * spec.orbit_altitude_km, np.random.default_rng(s_earth),
-                       albedo=spec.earth_albedo)
+    earth = _earth(spec, s_earth)
     rows = []
     cells = [(t, r) for t in spec.targets for r in spec.ranges_m]
     for (name, range_m), ss in zip(cells, child_seeds(s_cells, len(cells)), strict=True):
@@ -173,7 +212,7 @@ def measure(spec: SceneSpec = SceneSpec(), *, progress=None) -> list[dict]:
             g = np.random.default_rng(s_geo)
             q = quat_normalize(g.normal(size=4))
             T, eA = _cameras(g, range_m, spec)
-            sun = _sun(g, eA, spec.sun_phase_max_deg)
+            sun = _sun(g, eA, spec)
             turn = g.normal(size=3)
             q2 = quat_normalize(quat_multiply(quat_from_rotvec(np.radians(spec.epoch_change_deg) * turn
                                                                / np.linalg.norm(turn)), q))
@@ -224,11 +263,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--ranges", nargs="+", type=float, default=list(SceneSpec.ranges_m))
     p.add_argument("--attitudes", type=int, default=SceneSpec.attitudes)
     p.add_argument("--seed", type=int, default=SceneSpec.seed)
+    p.add_argument("--figure", metavar="PNG", help="also write camera A's image of the first attitude of the "
+                   "first target and range in the three scenes")
     args = p.parse_args(argv)
     if args.attitudes < 1 or not args.targets or min(args.ranges) <= 0:
         p.error("need --attitudes >= 1, a target and positive ranges")
     spec = SceneSpec(targets=tuple(args.targets), ranges_m=tuple(args.ranges), attitudes=args.attitudes,
                      seed=args.seed)
+    if args.figure:
+        scene_figure(args.figure, spec, target=spec.targets[0], range_m=spec.ranges_m[0])
     t0 = time.process_time()
     rows = measure(spec, progress=lambda s: print(s, file=sys.stderr, flush=True))
     print(format_table(rows))
