@@ -69,37 +69,35 @@ def reconstruct(obs: Observation) -> Frame:
 def reconstruct_many(observations: Sequence[Observation]) -> list[Frame]:
     """:func:`reconstruct` for several epochs of the same cameras in one batched triangulation.
 
-    The tracks are padded with NaN to a common count (padding rows come back invalid), solved in
-    one call of :func:`reconstruction.triangulation.triangulate`, and sliced back per epoch.
+    The tracks of all the epochs are stacked into one batch (no padding: epochs, or trials, with
+    very different track counts cost their tracks only), solved in one call of
+    :func:`reconstruction.triangulation.triangulate`, and sliced back per epoch; an epoch none of
+    whose tracks triangulates is solved again alone for its failure reason.
     """
     good = [o for o in observations if o.ok and o.n_tracks > 0]
     if len(good) < 2 or any(o.n_views != good[0].n_views for o in good):
         return [reconstruct(o) for o in observations]
-    m = max(o.n_tracks for o in good)
-    n = good[0].n_views
-    uv = np.full((len(good), m, n, 2), np.nan)
     per_track = any(o.track_sigma_px is not None for o in good)
-    sigma = np.full((len(good), m, n), good[0].pixel_sigma_px)
-    for e, o in enumerate(good):
-        uv[e, : o.n_tracks] = o.uv_px
-        sigma[e, : o.n_tracks] = o.sigma_uv_px
+    uv = np.concatenate([o.uv_px for o in good])
+    sigma = np.concatenate([np.broadcast_to(o.sigma_uv_px, o.uv_px.shape[:2]) for o in good])
     batch = triangulate(uv, good[0].K, good[0].T_CW,
                         pixel_sigma_px=sigma if per_track else good[0].pixel_sigma_px)
     frames: list[Frame] = []
-    e = 0
+    start = 0
     for o in observations:
         if not (o.ok and o.n_tracks > 0):
             frames.append(reconstruct(o))
             continue
-        k = o.n_tracks
-        sl = (e, slice(0, k))
+        sl = slice(start, start + o.n_tracks)
+        start += o.n_tracks
         n_valid = int(np.sum(batch.valid[sl]))
+        if n_valid == 0:
+            frames.append(reconstruct(o))
+            continue
         tri = Triangulation(
             X_W=batch.X_W[sl], cov_W=batch.cov_W[sl], valid=batch.valid[sl], failure_code=batch.failure_code[sl],
             views_used=batch.views_used[sl], n_views=batch.n_views[sl],
             rms_reprojection_px=batch.rms_reprojection_px[sl], chi2=batch.chi2[sl],
-            n_valid=np.asarray(n_valid), ok=n_valid > 0,
-            failure_reason="" if n_valid > 0 else str(np.asarray(batch.failure_reason)[e]))
+            n_valid=np.asarray(n_valid), ok=True, failure_reason="")
         frames.append(Frame(obs=o, tri=tri))
-        e += 1
     return frames

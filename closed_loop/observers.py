@@ -118,10 +118,10 @@ def _glint_target(target: Target) -> Target:
 
 
 @functools.lru_cache(maxsize=4)
-def _surface_features(target: Target, n_features: int):
+def _surface_features(target: Target, n_features: int, surface: str = "all"):
     from vision.geometric import surface_features
 
-    return surface_features(target, n_features=n_features)
+    return surface_features(target, n_features=n_features, surface=surface)
 
 
 @dataclass(frozen=True)
@@ -183,14 +183,34 @@ class GeometricObserver(Observer):
         from vision.geometric import observe_epochs
 
         n = int(self.n_features)
+        surface = "all"
+        if self.noise_model == "calibrated":  # on the outer surface only (vision.outer_surface)
+            from vision.geometric_calibrated import calibrated_feature_count
+
+            n, surface = max(n, calibrated_feature_count(self.camera, self.target, np.asarray(T_CW))), "outer"
+        return observe_epochs(self.camera, T_CW, self.target, q_HT, sun_H, rng=rng,
+                              features=_surface_features(self.target, n, surface),
+                              pixel_sigma_px=self.pixel_sigma_px, false_match_fraction=self.false_match_fraction,
+                              sun_visible_fraction=sun_visible_fraction, noise_model=self.noise_model)
+
+    def observe_trials(self, T_CW: np.ndarray, q_HT: np.ndarray, sun_H: np.ndarray, *,
+                       rngs: Sequence[np.random.Generator]) -> list[list[Observation]]:
+        """R independent trials of E epochs (``T_CW (R, E, n, 4, 4)``, ``q_HT (R, E, 4)``, unit ``sun_H
+        (R, E, 3)``), one generator per trial: trial r gives what :meth:`observe_epochs` gives with
+        ``rngs[r]``; the calibrated model batches the trials' geometry (:func:`vision.geometric.observe_trials`)."""
+        from vision.geometric import observe_trials
+
+        n = int(self.n_features)
+        surface = "all"
         if self.noise_model == "calibrated":
             from vision.geometric_calibrated import calibrated_feature_count
 
-            n = max(n, calibrated_feature_count(self.camera, self.target, np.asarray(T_CW)))
-        return observe_epochs(self.camera, T_CW, self.target, q_HT, sun_H, rng=rng,
-                              features=_surface_features(self.target, n),
+            n = max(n, calibrated_feature_count(self.camera, self.target, np.asarray(T_CW).reshape(-1, 4, 4)))
+            surface = "outer"
+        return observe_trials(self.camera, T_CW, self.target, q_HT, sun_H, rngs=rngs,
+                              features=_surface_features(self.target, n, surface),
                               pixel_sigma_px=self.pixel_sigma_px, false_match_fraction=self.false_match_fraction,
-                              sun_visible_fraction=sun_visible_fraction, noise_model=self.noise_model)
+                              noise_model=self.noise_model)
 
 
 #: observation mode (config ``observation.mode``) → observer class

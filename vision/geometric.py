@@ -55,7 +55,7 @@ from vision.observation import (
 )
 from vision.target import Target
 
-__all__ = ["SurfaceFeatures", "observe", "observe_epochs", "surface_features"]
+__all__ = ["SurfaceFeatures", "observe", "observe_epochs", "observe_trials", "surface_features"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,6 +74,9 @@ class SurfaceFeatures:
         Unit descriptors.
     triangle_id : ndarray, shape (N,)
         Triangle of each feature.
+    area_m2 : float
+        Area of the surface the features were sampled on, m² (the whole mesh, or its outer surface:
+        :mod:`vision.outer_surface`); NaN when not known (then the mesh's).
     """
 
     X_T: np.ndarray
@@ -81,6 +84,7 @@ class SurfaceFeatures:
     scale_m: np.ndarray
     descriptors: np.ndarray
     triangle_id: np.ndarray
+    area_m2: float = float("nan")
 
     def __len__(self) -> int:
         return int(len(self.X_T))
@@ -88,7 +92,7 @@ class SurfaceFeatures:
 
 def surface_features(target: Target, *, n_features: int = 1500, descriptor_dim: int = 128,
                      scale_range_m: tuple[float, float] = (0.01, 0.15),
-                     rng: np.random.Generator | int | None = None) -> SurfaceFeatures:
+                     rng: np.random.Generator | int | None = None, surface: str = "all") -> SurfaceFeatures:
     """Sample feature points uniformly by area on the target surface.
 
     Parameters
@@ -103,6 +107,9 @@ def surface_features(target: Target, *, n_features: int = 1500, descriptor_dim: 
     rng : Generator, int or None
         Random source; None derives a fixed stream from ``target.seed``, so the same target always
         has the same features.
+    surface : str
+        ``"all"``: the whole mesh; ``"outer"``: only points some camera outside the target can see
+        (:func:`vision.outer_surface.outer_mask`), drawn by rejection, uniformly by area over them.
     """
     if not isinstance(target, Target):
         raise ValueError(f"target must be a Target, got {type(target).__name__}")
@@ -113,21 +120,40 @@ def surface_features(target: Target, *, n_features: int = 1500, descriptor_dim: 
     lo, hi = (float(v) for v in scale_range_m)
     if not 0 < lo <= hi:
         raise ValueError(f"scale_range_m must satisfy 0 < min <= max, got {scale_range_m!r}")
+    if surface not in ("all", "outer"):
+        raise ValueError(f"surface must be 'all' or 'outer', got {surface!r}")
     if rng is None:
         rng = np.random.SeedSequence([target.seed, 0x5EED])
     rng = np.random.default_rng(rng)
     n = int(n_features)
+    tid, X = _points_by_area(target, n, rng)
+    area_m2 = float(target.triangle_areas_m2.sum())
+    if surface == "outer":
+        from vision.outer_surface import outer_mask, outer_surface_area_m2
+
+        keep = outer_mask(target, X, target.triangle_normals_T[tid])
+        tid, X = tid[keep], X[keep]
+        while len(tid) < n:
+            t2, X2 = _points_by_area(target, 2 * (n - len(tid)) + 16, rng)
+            k2 = outer_mask(target, X2, target.triangle_normals_T[t2])
+            tid, X = np.concatenate([tid, t2[k2]]), np.concatenate([X, X2[k2]])
+        tid, X = tid[:n], X[:n]
+        area_m2 = outer_surface_area_m2(target)
+    scale = np.exp(rng.uniform(np.log(lo), np.log(hi), n))
+    desc = rng.standard_normal((n, int(descriptor_dim))).astype(np.float32)
+    desc /= np.linalg.norm(desc, axis=1, keepdims=True)
+    return SurfaceFeatures(X, target.triangle_normals_T[tid].copy(), scale, desc, tid, area_m2)
+
+
+def _points_by_area(target: Target, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` points uniform by area on the mesh: triangle ids ``(n,)`` and body-frame points ``(n, 3)``, m."""
     area = target.triangle_areas_m2
     tid = rng.choice(len(area), size=n, p=area / area.sum())
     r1, r2 = rng.random(n), rng.random(n)
     flip = r1 + r2 > 1.0
     r1 = np.where(flip, 1.0 - r1, r1)
     r2 = np.where(flip, 1.0 - r2, r2)
-    X = target.point_on_triangles(tid, np.stack([r1, r2], axis=1))
-    scale = np.exp(rng.uniform(np.log(lo), np.log(hi), n))
-    desc = rng.standard_normal((n, int(descriptor_dim))).astype(np.float32)
-    desc /= np.linalg.norm(desc, axis=1, keepdims=True)
-    return SurfaceFeatures(X, target.triangle_normals_T[tid].copy(), scale, desc, tid)
+    return tid, target.point_on_triangles(tid, np.stack([r1, r2], axis=1))
 
 
 def _default_features(target: Target) -> SurfaceFeatures:
@@ -230,6 +256,38 @@ def observe_epochs(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayL
     list of Observation
         One per epoch.
     """
+    cams, T, q, sun, fsun = _checked(camera, T_CW, target, q_HT, sun_H, sun_visible_fraction, pixel_sigma_px,
+                                     false_match_fraction, min_views, max_view_angle_deg,
+                                     max_sun_incidence_deg, descriptor_noise)
+    E = T.shape[0]
+    feats = _default_features(target) if features is None else features
+    rng = np.random.default_rng(rng)
+    if noise_model == "calibrated":
+        from vision.geometric_calibrated import observe_epochs_calibrated
+
+        return observe_epochs_calibrated(
+            cams, T, target, q, sun, fsun, feats, rng, calibration=calibration, min_views=int(min_views),
+            cos_view=np.cos(np.deg2rad(max_view_angle_deg)), cos_sun=np.cos(np.deg2rad(max_sun_incidence_deg)),
+            descriptor_noise=float(descriptor_noise), margin_px=float(margin_px), batch_size=int(batch_size))
+    if noise_model != "fixed":
+        raise ValueError(f"noise_model must be 'fixed' or 'calibrated', got {noise_model!r}")
+    out: list[Observation] = []
+    for b0 in range(0, E, int(batch_size)):
+        sl = slice(b0, min(E, b0 + int(batch_size)))
+        out.extend(_observe_batch(cams, T[sl], target, q[sl], sun[sl], fsun[sl], feats, rng,
+                                  pixel_sigma_px=float(pixel_sigma_px),
+                                  false_match_fraction=float(false_match_fraction),
+                                  min_views=int(min_views), min_feature_px=float(min_feature_px),
+                                  cos_view=np.cos(np.deg2rad(max_view_angle_deg)),
+                                  cos_sun=np.cos(np.deg2rad(max_sun_incidence_deg)),
+                                  descriptor_noise=float(descriptor_noise),
+                                  margin_px=float(margin_px)))
+    return out
+
+
+def _checked(camera, T_CW, target, q_HT, sun_H, sun_visible_fraction, pixel_sigma_px, false_match_fraction,
+             min_views, max_view_angle_deg, max_sun_incidence_deg, descriptor_noise):
+    """The validated inputs of :func:`observe_epochs`: ``(cams, T, q, sun, fsun)``."""
     T = check_pose(T_CW, name="T_CW")
     if T.ndim != 4:
         raise ValueError(f"T_CW must have shape (E, n, 4, 4), got {T.shape}")
@@ -257,29 +315,59 @@ def observe_epochs(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayL
                          f"{max_view_angle_deg!r}, {max_sun_incidence_deg!r}")
     if not descriptor_noise >= 0:
         raise ValueError(f"descriptor_noise must be >= 0, got {descriptor_noise!r}")
-    feats = _default_features(target) if features is None else features
-    rng = np.random.default_rng(rng)
-    if noise_model == "calibrated":
-        from vision.geometric_calibrated import observe_epochs_calibrated
+    return cams, T, q, sun, fsun
 
-        return observe_epochs_calibrated(
-            cams, T, target, q, sun, fsun, feats, rng, calibration=calibration, min_views=int(min_views),
-            cos_view=np.cos(np.deg2rad(max_view_angle_deg)), cos_sun=np.cos(np.deg2rad(max_sun_incidence_deg)),
-            descriptor_noise=float(descriptor_noise), margin_px=float(margin_px), batch_size=int(batch_size))
-    if noise_model != "fixed":
-        raise ValueError(f"noise_model must be 'fixed' or 'calibrated', got {noise_model!r}")
-    out: list[Observation] = []
-    for b0 in range(0, E, int(batch_size)):
-        sl = slice(b0, min(E, b0 + int(batch_size)))
-        out.extend(_observe_batch(cams, T[sl], target, q[sl], sun[sl], fsun[sl], feats, rng,
-                                  pixel_sigma_px=float(pixel_sigma_px),
-                                  false_match_fraction=float(false_match_fraction),
-                                  min_views=int(min_views), min_feature_px=float(min_feature_px),
-                                  cos_view=np.cos(np.deg2rad(max_view_angle_deg)),
-                                  cos_sun=np.cos(np.deg2rad(max_sun_incidence_deg)),
-                                  descriptor_noise=float(descriptor_noise),
-                                  margin_px=float(margin_px)))
-    return out
+
+def observe_trials(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLike, target: Target,
+                   q_HT: ArrayLike, sun_H: ArrayLike, *, rngs: Sequence[np.random.Generator],
+                   sun_visible_fraction: ArrayLike = 1.0, noise_model: str = "fixed", batch_size: int = 128,
+                   **options) -> list[list[Observation]]:
+    """R independent trials of E consecutive epochs: ``T_CW (R, E, n, 4, 4)``, ``q_HT (R, E, 4)``,
+    ``sun_H (R, E, 3)``, ``sun_visible_fraction`` scalar or ``(R, E)``, one generator per trial.
+
+    Each trial gives what :func:`observe_epochs` gives for its epochs with its own generator;
+    ``options`` are those of :func:`observe_epochs`.  The calibrated model computes the projection,
+    detection and ray casting of all the trials together
+    (:func:`vision.geometric_calibrated.observe_trials_calibrated`); the fixed model calls
+    :func:`observe_epochs` per trial.
+
+    Returns
+    -------
+    list of list of Observation
+        ``[trial][epoch]``.
+    """
+    T = np.asarray(T_CW, dtype=float)
+    if T.ndim != 5:
+        raise ValueError(f"T_CW must have shape (R, E, n, 4, 4), got {T.shape}")
+    R, E = T.shape[:2]
+    if len(rngs) != R:
+        raise ValueError(f"rngs: expected one generator per trial ({R}), got {len(rngs)}")
+    q = np.asarray(q_HT, dtype=float).reshape(R * E, -1)
+    sun = np.asarray(sun_H, dtype=float).reshape(R * E, -1)
+    fsun = np.broadcast_to(np.asarray(sun_visible_fraction, dtype=float), (R, E)).reshape(R * E)
+    if noise_model != "calibrated":
+        return [observe_epochs(camera, T[r], target, q.reshape(R, E, -1)[r], sun.reshape(R, E, -1)[r], rng=rngs[r],
+                               sun_visible_fraction=fsun.reshape(R, E)[r], noise_model=noise_model,
+                               batch_size=batch_size, **options) for r in range(R)]
+    from vision.geometric_calibrated import observe_trials_calibrated
+
+    o = {"pixel_sigma_px": 0.5, "false_match_fraction": 0.02, "min_views": 2, "max_view_angle_deg": 75.0,
+         "max_sun_incidence_deg": 88.0, "descriptor_noise": 0.2, "margin_px": 0.0, "features": None,
+         "calibration": None}
+    unknown = set(options) - set(o)
+    if unknown:
+        raise ValueError(f"observe_trials: unknown options {sorted(unknown)}")
+    o.update(options)
+    cams, Tf, qf, sunf, fsunf = _checked(camera, T.reshape(R * E, *T.shape[2:]), target, q, sun, fsun,
+                                         o["pixel_sigma_px"], o["false_match_fraction"], o["min_views"],
+                                         o["max_view_angle_deg"], o["max_sun_incidence_deg"], o["descriptor_noise"])
+    feats = _default_features(target) if o["features"] is None else o["features"]
+    n = Tf.shape[1]
+    return observe_trials_calibrated(cams, Tf.reshape(R, E, n, 4, 4), target, qf.reshape(R, E, 4),
+                                     sunf.reshape(R, E, 3), fsunf.reshape(R, E), feats, list(rngs),
+                                     calibration=o["calibration"], min_views=int(o["min_views"]),
+                                     descriptor_noise=float(o["descriptor_noise"]), margin_px=float(o["margin_px"]),
+                                     batch_size=int(batch_size))
 
 
 @dataclass(eq=False)

@@ -31,6 +31,7 @@ silhouettes).  Then, with the statistics of :mod:`vision.calibration` measured o
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -44,9 +45,11 @@ from vision.observation import (
     REASON_TOO_FEW_MATCHES,
     Observation,
 )
+from vision.outer_surface import outer_surface_area_m2
 from vision.target import Target
 
-__all__ = ["calibrated_feature_count", "pair_copula_correlation", "temporal_correlation", "observe_epochs_calibrated"]
+__all__ = ["calibrated_feature_count", "pair_copula_correlation", "temporal_correlation", "observe_epochs_calibrated",
+           "observe_trials_calibrated"]
 
 #: margin on the largest measured density when sizing the feature set
 _DENSITY_MARGIN = 1.2
@@ -55,14 +58,15 @@ _MAX_FEATURES = 100_000
 
 def calibrated_feature_count(camera: PinholeCamera, target: Target, T_CW: np.ndarray,
                              calibration: SiftCalibration | None = None) -> int:
-    """Surface features needed so that the largest measured density at the closest camera is reachable."""
+    """Surface features needed so that the largest measured density at the closest camera is reachable
+    on the target's outer surface (:mod:`vision.outer_surface`: the features are sampled there)."""
     cal = calibration if calibration is not None else load_calibration(target.name)
     T = np.asarray(T_CW, dtype=float).reshape(-1, 4, 4)
     c = -np.einsum("kji,kj->ki", T[:, :3, :3], T[:, :3, 3])
     z_min = max(float(np.min(np.linalg.norm(c, axis=1))) - target.radius_m, 0.5 * float(np.min(np.linalg.norm(c, axis=1))))
     f = float(np.sqrt(camera.K[0, 0] * camera.K[1, 1]))
     rho = cal.max_density(z_min / f)
-    n = int(math.ceil(_DENSITY_MARGIN * rho * float(target.triangle_areas_m2.sum())))
+    n = int(math.ceil(_DENSITY_MARGIN * rho * outer_surface_area_m2(target)))
     return min(max(n, 1), _MAX_FEATURES)
 
 
@@ -134,142 +138,216 @@ def _components(adj: np.ndarray) -> np.ndarray:
     return reach[np.arange(N), root]
 
 
+@functools.lru_cache(maxsize=16)
+def _copula_correlations(ratio: float, survival_mean: float, persistence: tuple, survival: tuple) -> tuple[float, float]:
+    """The pair copula's correlation between pairs and over epochs (constants of a calibration; cached)."""
+    rho_c = pair_copula_correlation(ratio, survival_mean)
+    rho_t = float(np.mean([temporal_correlation(p, s) for p, s in zip(persistence, survival, strict=True)])) \
+        if persistence else 0.0
+    return rho_c, rho_t
+
+
+def _calibration_correlations(cal: SiftCalibration) -> tuple[float, float]:
+    ok = np.isfinite(cal.track_persistence)
+    return _copula_correlations(float(cal.three_over_two_ratio), float(np.mean(cal.pair_survival[:, 0])),
+                                tuple(float(p) for p in cal.track_persistence[ok]),
+                                tuple(float(s) for s in cal.pair_survival[ok, 0]))
+
+
 def observe_epochs_calibrated(cams, T, target, q, sun, fsun, feats, rng, *, calibration, min_views, cos_view,
                               cos_sun, descriptor_noise, margin_px, batch_size) -> list[Observation]:
     """The calibrated model (module docstring) over epochs already validated by :func:`vision.geometric.observe_epochs`.
 
     ``cos_view`` and ``cos_sun`` (the fixed model's limits) are not used: the measured density
-    covers every view angle and unlit surfaces.
+    covers every view angle and unlit surfaces.  One trial of :func:`observe_trials_calibrated`.
     """
     del cos_view, cos_sun
-    from vision.geometric import _false_matches, _geometry, _occlude, _sun_T
+    return observe_trials_calibrated(cams, T[None], target, q[None], sun[None], fsun[None], feats, [rng],
+                                     calibration=calibration, min_views=min_views,
+                                     descriptor_noise=descriptor_noise, margin_px=margin_px,
+                                     batch_size=batch_size)[0]
+
+
+def observe_trials_calibrated(cams, T, target, q, sun, fsun, feats, rngs, *, calibration, min_views,
+                              descriptor_noise, margin_px, batch_size) -> list[list[Observation]]:
+    """The calibrated model for R independent trials of E consecutive epochs each, geometry batched.
+
+    ``T (R, E, n, 4, 4)``, ``q (R, E, 4)``, ``sun (R, E, 3)``, ``fsun (R, E)`` and one generator per
+    trial in ``rngs``.  The projection, detection and ray casting of all the trials' epochs are
+    computed together, ``batch_size`` epochs (whole trials) at a time, one Open3D call each; the
+    random draws of trial r come from ``rngs[r]`` alone and in the same order whatever the batch,
+    so a trial gives the same observations alone (:func:`observe_epochs_calibrated`) or batched.
+    Only the features that some epoch of the trial detects in two views take part in the draws
+    after detection.
+    """
+    from vision.geometric import _geometry, _occlude, _sun_T
 
     cal = calibration if calibration is not None else load_calibration(target.name)
-    E, n = T.shape[:2]
+    R, E, n = T.shape[:3]
     N = len(feats)
-    D = feats.descriptors.shape[1]
-    rho_F = N / float(target.triangle_areas_m2.sum())
+    area_m2 = feats.area_m2 if np.isfinite(feats.area_m2) else float(target.triangle_areas_m2.sum())
+    rho_F = N / area_m2
     material = target.triangle_material[feats.triangle_id] if cal.material_factor.shape[1] == len(target.materials) \
         else None
     f_px = np.array([math.sqrt(c.K[0, 0] * c.K[1, 1]) for c in cams])
-    # per-feature draws that hold for the whole call (consecutive epochs of one trial)
-    u_det = rng.random(N)
-    v_size = rng.random(N)
-    rho_c = pair_copula_correlation(cal.three_over_two_ratio, float(np.mean(cal.pair_survival[:, 0])))
-    ok = np.isfinite(cal.track_persistence)
-    rho_t = float(np.mean([temporal_correlation(p, s) for p, s in
-                           zip(cal.track_persistence[ok], cal.pair_survival[ok, 0], strict=True)])) if ok.any() else 0.0
-    # copula variables of every feature's view pairs: a common factor and one per pair, each an AR(1)
-    # process over the epochs of the call with correlation rho_t
-    w_pair = rng.standard_normal(N)
-    e_pair = rng.standard_normal((N, n, n))
-    first = True
-    desc_state = feats.descriptors.copy()
-    prev = None                                                           # (R_CT (n,3,3), tracked ids, states)
-    out: list[Observation] = []
-    size = tuple(int(s) for s in cams[0].image_size)
-    for b0 in range(0, E, int(batch_size)):
-        sl = slice(b0, min(E, b0 + int(batch_size)))
+    u_det = np.stack([r.random(N) for r in rngs])                         # (R, N), one per feature and trial
+    per = max(1, int(batch_size) // max(E, 1))                            # whole trials per geometry batch
+    out: list[list[Observation]] = []
+    for r0 in range(0, R, per):
+        rs = slice(r0, min(R, r0 + per))
+        k = rs.stop - r0
+        Tb, qb, sb = T[rs].reshape(k * E, n, 4, 4), q[rs].reshape(k * E, 4), sun[rs].reshape(k * E, 3)
+        fb = fsun[rs].reshape(k * E)
+        u = np.repeat(u_det[rs], E, axis=0)[:, None, :]                   # (kE, 1, N)
         # every surface facing a camera counts, lit or not: keypoints on shadowed or unlit surfaces
         # (shadow edges, silhouettes against lit parts) are measured as their own Sun bin
-        g = _geometry(cams, T[sl], q[sl], sun[sl], fsun[sl], feats, min_feature_px=0.0, cos_view=0.0,
-                      cos_sun=-2.0, margin_px=margin_px)
-        dark = _occlude(g, target, feats, _sun_T(q[sl], sun[sl]), drop_shadowed=False)    # (e, N)
-        fp = g.z / f_px[None, :, None]                                    # (e, n, N) m/px
+        g = _geometry(cams, Tb, qb, sb, fb, feats, min_feature_px=0.0, cos_view=0.0, cos_sun=-2.0,
+                      margin_px=margin_px)
+        fp = g.z / f_px[None, :, None]                                    # (kE, n, N) m/px
         side = np.where(g.cos_view >= 0, 1.0, -1.0)
-        lit = (side * g.cos_sun > 0) & ~dark[:, None, :]
-        with np.errstate(invalid="ignore"):
-            sun_bin = cal.sun_bin(side * g.cos_sun, lit)
-            p_det = cal.density(np.where(g.vis, fp, 1.0), g.cos_view, sun_bin, material) / rho_F
-        g.vis &= u_det[None, None, :] < p_det
-        for k in range(g.vis.shape[0]):
-            e = b0 + k
-            Te = T[e]
-            if fsun[e] == 0.0:
-                out.append(Observation.empty(g.K, Te, size, float(np.mean(cal.sigma_px)), REASON_EARTH_SHADOW,
-                                             descriptor_dim=D))
-                prev = None
-                continue
-            if g.in_fov[k].sum() < 2:
-                out.append(Observation.empty(g.K, Te, size, float(np.mean(cal.sigma_px)), REASON_OUTSIDE_FOV,
-                                             descriptor_dim=D))
-                prev = None
-                continue
-            det = g.vis[k].T                                              # (N, n)
-            c_dir = g.c_T[k] / np.linalg.norm(g.c_T[k], axis=1, keepdims=True)
-            ang = np.degrees(np.arccos(np.clip(c_dir @ c_dir.T, -1.0, 1.0)))   # (n, n) between the cameras
-            n_det = det.sum(axis=1)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                fp_f = np.where(n_det > 0, np.sum(np.where(det, fp[k].T, 0.0), axis=1) / n_det, np.nan)  # (N,)
-            cand = np.nonzero(det.sum(axis=1) >= 2)[0]
-            S = cal.pair_survival_at(np.nan_to_num(fp_f[cand], nan=1.0)[:, None, None], ang[None])
-            # the pair matches are re-decided every epoch, correlated with the previous epoch's as
-            # measured (track persistence) and between the pairs of one feature (3-view/2-view ratio)
-            if not first:
-                a = math.sqrt(1.0 - rho_t * rho_t)
-                w_pair = rho_t * w_pair + a * rng.standard_normal(N)
-                e_pair = rho_t * e_pair + a * rng.standard_normal((N, n, n))
-            first = False
-            eps = np.triu(e_pair[cand], 1) + np.swapaxes(np.triu(e_pair[cand], 1), 1, 2)
-            z = math.sqrt(rho_c) * w_pair[cand][:, None, None] + math.sqrt(1.0 - rho_c) * eps
-            adj = det[cand][:, :, None] & det[cand][:, None, :] & (ndtr(z) < S)
-            adj &= ~np.eye(n, dtype=bool)[None]
-            members = _components(adj) & det[cand]
-            is_track = members.sum(axis=1) >= min_views
-            fid = cand[is_track]
-            seen = members[is_track]                                      # (M, n)
-            # association state: keep, renew or (false association) take another feature's descriptor
-            if prev is not None:
-                change = float(np.mean(_rotation_angle_deg(g.R_CT[k] @ np.swapaxes(prev[0], -1, -2))))
-                fin = np.isfinite(fp_f)
-                fpa = np.where(fin, fp_f, float(np.median(fp_f[fin])) if fin.any() else 1.0)
-                keep = rng.random(N) < cal.association_survival_at(fpa, change)
-                fresh = rng.standard_normal((N, D)).astype(np.float32)
-                fresh /= np.linalg.norm(fresh, axis=1, keepdims=True)
-                new_state = np.where(keep[:, None], desc_state, fresh)
-                donors = prev[1]
-                if len(fid) and len(donors) > 1:
-                    fa = cal.false_association_rate_at(fpa[fid], change)
-                    recv = fid[rng.random(len(fid)) < fa]
-                    if len(recv):
-                        pick = donors[rng.integers(0, len(donors), len(recv))]
-                        ok = pick != recv
-                        recv, pick = recv[ok], pick[ok]
-                        new_state[recv] = prev[2][pick]
-                        new_state[pick] = fresh[recv]
-                desc_state = new_state
-            M = len(fid)
-            if M == 0:
-                out.append(Observation.empty(g.K, Te, size, float(np.mean(cal.sigma_px)), REASON_TOO_FEW_MATCHES,
-                                             descriptor_dim=D))
-                prev = (g.R_CT[k], fid, desc_state.copy())
-                continue
-            uv_e = np.swapaxes(g.uv[k][:, fid], 0, 1).copy()              # (M, n, 2)
-            size_px = cal.size_px(fp[k][:, fid].T, np.broadcast_to(v_size[fid, None], (M, n)))
-            sig = cal.sigma_for_size(size_px, fp[k][:, fid].T)
-            uv_e += sig[..., None] * rng.standard_normal(uv_e.shape)
-            uv_e[~seen] = np.nan
-            desc = desc_state[fid].copy()
-            if descriptor_noise > 0:
-                desc += (descriptor_noise / np.sqrt(D)) * rng.standard_normal(desc.shape).astype(np.float32)
-                desc /= np.linalg.norm(desc, axis=1, keepdims=True)
-            ids = fid.astype(np.int64)
-            X_true = feats.X_T[fid].copy()
-            prev = (g.R_CT[k], fid, desc_state.copy())
-            pair = [(i, j) for i in range(n) for j in range(i + 1, n)]
-            fp_med = float(np.median(fp_f[fid]))
-            fm = float(np.mean([cal.false_match_rate_at(fp_med, ang[i, j]) for i, j in pair]))
-            if fm > 0:
-                keep_m = _false_matches(rng, fm, uv_e, seen, g.z[k][:, fid].T, cams, Te, desc, ids, X_true,
-                                        target.radius_m, float(np.median(sig)), margin_px)
-                uv_e, desc, ids, X_true = uv_e[keep_m], desc[keep_m], ids[keep_m], X_true[keep_m]
-                sig, size_px = sig[keep_m], size_px[keep_m]
-            present = np.isfinite(uv_e).all(axis=-1)
-            sig = np.where(present, sig, np.nan)
-            size_px = np.where(present, size_px, np.nan)
-            out.append(Observation(uv_px=uv_e, descriptors=desc, K=g.K, T_CW=Te, image_size=size,
-                                   pixel_sigma_px=float(np.sqrt(np.mean(sig[present] ** 2))) if present.any()
-                                   else float(np.mean(cal.sigma_px)), feature_id=ids,
-                                   X_T_true=X_true, failure_reason="" if len(ids) else REASON_TOO_FEW_MATCHES,
-                                   track_sigma_px=sig, keypoint_size_px=size_px))
+        can_lit = side * g.cos_sun > 0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            fp_ok = np.where(g.vis, fp, 1.0)
+            p_lit = cal.density(fp_ok, g.cos_view, cal.sun_bin(side * g.cos_sun, can_lit), material) / rho_F
+            p_dark = cal.density(fp_ok, g.cos_view, np.zeros(fp.shape, dtype=int), material) / rho_F
+        # features above both detection probabilities are not detected whatever the ray casting gives:
+        # cast rays only for the others (the shadow of a feature decides only its own lit flag)
+        g.vis &= u < np.maximum(p_lit, p_dark)
+        dark = _occlude(g, target, feats, _sun_T(qb, sb), drop_shadowed=False)    # (kE, N)
+        g.vis &= u < np.where(can_lit & ~dark[:, None, :], p_lit, p_dark)
+        for j in range(k):
+            es = slice(j * E, (j + 1) * E)
+            out.append(_trial(g, es, fp[es], T[r0 + j], fsun[r0 + j], feats, cal, rngs[r0 + j], target=target,
+                              cams=cams, min_views=min_views, descriptor_noise=descriptor_noise, margin_px=margin_px))
+    return out
+
+
+def _descriptors(labels: np.ndarray, feats, extra: dict, rng: np.random.Generator) -> np.ndarray:
+    """Descriptor of each state label: a feature's own (label < N) or a fresh unrelated unit vector
+    drawn the first time the label is seen."""
+    N, D = feats.descriptors.shape
+    new = np.unique(labels[(labels >= N)])
+    new = new[[int(v) not in extra for v in new]] if new.size else new
+    if new.size:
+        d = rng.standard_normal((new.size, D)).astype(np.float32)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        extra.update(zip((int(v) for v in new), d, strict=True))
+    out = feats.descriptors[np.minimum(labels, N - 1)].copy()
+    for i in np.nonzero(labels >= N)[0]:
+        out[i] = extra[int(labels[i])]
+    return out
+
+
+def _trial(g, es, fp, T, fsun, feats, cal, rng, *, target, cams, min_views, descriptor_noise,
+           margin_px) -> list[Observation]:
+    """Matching, localisation, false matches and association of one trial's epochs ``es`` of a batch."""
+    from vision.geometric import _false_matches
+
+    E, n = fp.shape[:2]
+    N, D = feats.descriptors.shape
+    size = tuple(int(s) for s in cams[0].image_size)
+    sigma0 = float(np.mean(cal.sigma_px))
+    vis = g.vis[es]
+    cand = np.nonzero(np.any(vis.sum(axis=1) >= 2, axis=0))[0]            # features that can form a track
+    C = cand.size
+    det_all = vis[:, :, cand]                                             # (E, n, C)
+    fp_c = fp[:, :, cand]
+    v_size = rng.random(C)
+    rho_c, rho_t = _calibration_correlations(cal)
+    # copula variables of every candidate's view pairs: a common factor and one per pair, each an
+    # AR(1) process over the epochs of the trial with correlation rho_t
+    w_pair = rng.standard_normal(C)
+    e_pair = rng.standard_normal((C, n, n))
+    first = True
+    state = cand.astype(np.int64)                                         # descriptor labels (< N: own)
+    next_label = N
+    extra: dict = {}
+    prev = None                                                           # (R_CT (n,3,3), tracked, states)
+    out: list[Observation] = []
+    for k in range(E):
+        ek = es.start + k
+        if fsun[k] == 0.0 or g.in_fov[ek].sum() < 2:
+            out.append(Observation.empty(g.K, T[k], size, sigma0,
+                                         REASON_EARTH_SHADOW if fsun[k] == 0.0 else REASON_OUTSIDE_FOV,
+                                         descriptor_dim=D))
+            prev = None
+            continue
+        det = det_all[k].T                                                # (C, n)
+        c_dir = g.c_T[ek] / np.linalg.norm(g.c_T[ek], axis=1, keepdims=True)
+        ang = np.degrees(np.arccos(np.clip(c_dir @ c_dir.T, -1.0, 1.0)))   # (n, n) between the cameras
+        n_det = det.sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            fp_f = np.where(n_det > 0, np.sum(np.where(det, fp_c[k].T, 0.0), axis=1) / n_det, np.nan)  # (C,)
+        two = np.nonzero(n_det >= 2)[0]
+        S = cal.pair_survival_at(np.nan_to_num(fp_f[two], nan=1.0)[:, None, None], ang[None])
+        # the pair matches are re-decided every epoch, correlated with the previous epoch's as
+        # measured (track persistence) and between the pairs of one feature (3-view/2-view ratio)
+        if not first:
+            a = math.sqrt(1.0 - rho_t * rho_t)
+            w_pair = rho_t * w_pair + a * rng.standard_normal(C)
+            e_pair = rho_t * e_pair + a * rng.standard_normal((C, n, n))
+        first = False
+        eps = np.triu(e_pair[two], 1) + np.swapaxes(np.triu(e_pair[two], 1), 1, 2)
+        z = math.sqrt(rho_c) * w_pair[two][:, None, None] + math.sqrt(1.0 - rho_c) * eps
+        adj = det[two][:, :, None] & det[two][:, None, :] & (ndtr(z) < S)
+        adj &= ~np.eye(n, dtype=bool)[None]
+        members = _components(adj) & det[two]
+        is_track = members.sum(axis=1) >= min_views
+        fid = two[is_track]                                               # local (candidate) indices
+        seen = members[is_track]                                          # (M, n)
+        # association state: keep, renew or (false association) take another feature's descriptor
+        if prev is not None:
+            change = float(np.mean(_rotation_angle_deg(g.R_CT[ek] @ np.swapaxes(prev[0], -1, -2))))
+            fin = np.isfinite(fp_f)
+            fpa = np.where(fin, fp_f, float(np.median(fp_f[fin])) if fin.any() else 1.0)
+            keep = rng.random(C) < cal.association_survival_at(fpa, change)
+            fresh = next_label + np.arange(C)
+            next_label += C
+            new_state = np.where(keep, state, fresh)
+            donors = prev[1]
+            if len(fid) and len(donors) > 1:
+                fa = cal.false_association_rate_at(fpa[fid], change)
+                recv = fid[rng.random(len(fid)) < fa]
+                if len(recv):
+                    pick = donors[rng.integers(0, len(donors), len(recv))]
+                    ok = pick != recv
+                    recv, pick = recv[ok], pick[ok]
+                    new_state[recv] = prev[2][pick]
+                    new_state[pick] = fresh[recv]
+            state = new_state
+        M = len(fid)
+        if M == 0:
+            out.append(Observation.empty(g.K, T[k], size, sigma0, REASON_TOO_FEW_MATCHES, descriptor_dim=D))
+            prev = (g.R_CT[ek], fid, state.copy())
+            continue
+        gid = cand[fid]
+        uv_e = np.swapaxes(g.uv[ek][:, gid], 0, 1).copy()                 # (M, n, 2)
+        fp_m = fp_c[k][:, fid].T                                          # (M, n)
+        size_px = cal.size_px(fp_m, np.broadcast_to(v_size[fid, None], (M, n)))
+        sig = cal.sigma_for_size(size_px, fp_m)
+        uv_e += sig[..., None] * rng.standard_normal(uv_e.shape)
+        uv_e[~seen] = np.nan
+        desc = _descriptors(state[fid], feats, extra, rng)
+        if descriptor_noise > 0:
+            desc += (descriptor_noise / np.sqrt(D)) * rng.standard_normal(desc.shape).astype(np.float32)
+            desc /= np.linalg.norm(desc, axis=1, keepdims=True)
+        ids = gid.astype(np.int64)
+        X_true = feats.X_T[gid].copy()
+        prev = (g.R_CT[ek], fid, state.copy())
+        pair = [(i, j) for i in range(n) for j in range(i + 1, n)]
+        fp_med = float(np.median(fp_f[fid]))
+        fm = float(np.mean([cal.false_match_rate_at(fp_med, ang[i, j]) for i, j in pair]))
+        if fm > 0:
+            keep_m = _false_matches(rng, fm, uv_e, seen, g.z[ek][:, gid].T, cams, T[k], desc, ids, X_true,
+                                    target.radius_m, float(np.median(sig)), margin_px)
+            uv_e, desc, ids, X_true = uv_e[keep_m], desc[keep_m], ids[keep_m], X_true[keep_m]
+            sig, size_px = sig[keep_m], size_px[keep_m]
+        present = np.isfinite(uv_e).all(axis=-1)
+        sig = np.where(present, sig, np.nan)
+        size_px = np.where(present, size_px, np.nan)
+        out.append(Observation(uv_px=uv_e, descriptors=desc, K=g.K, T_CW=T[k], image_size=size,
+                               pixel_sigma_px=float(np.sqrt(np.mean(sig[present] ** 2))) if present.any()
+                               else sigma0, feature_id=ids,
+                               X_T_true=X_true, failure_reason="" if len(ids) else REASON_TOO_FEW_MATCHES,
+                               track_sigma_px=sig, keypoint_size_px=size_px))
     return out

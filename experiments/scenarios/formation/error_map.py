@@ -114,46 +114,76 @@ def error_map_trials(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> di
                                            "n_matches", "n_inliers", "failed_steps")}
     reasons = np.array([""] * M, dtype=object)
     sun = np.asarray(cfg.observation.sun_H, dtype=float)
-    for t, ss in enumerate(seeds):
-        s_att, s_obs, s_reg = child_seeds(ss, 3)
-        q0 = random_attitudes(np.random.default_rng(s_att))
-        qs = [q0]
-        for _ in range(steps):
-            qs.append(quat_normalize(quat_multiply(dq, qs[-1])))
-        qs = np.array(qs)
-        if isinstance(observer, GeometricObserver):  # all epochs of the trial in one batched call
-            sun_E = np.broadcast_to(sun / np.linalg.norm(sun), (steps + 1, 3))
-            observations = observer.observe_epochs(np.broadcast_to(T_CW, (steps + 1, *T_CW.shape)), qs, sun_E,
-                                                   rng=np.random.default_rng(s_obs))
-        else:
-            obs_rngs = np.random.default_rng(s_obs).spawn(steps + 1)
-            observations = [observer.observe(T_CW, qs[k], sun, rng=obs_rngs[k]) for k in range(steps + 1)]
-        reg_rng = np.random.default_rng(s_reg)
-        frames = reconstruct_many(observations)
-        est, errs, inliers, matches = [], [], [], []
-        tracks = [f.obs.n_tracks for f in frames]
-        out["crlb_deg"][t] = _crlb_deg(frames[0], frames[1], qs[0], dq, T_CW)
-        why = ""
-        for k in range(1, steps + 1):
-            inc = registrar.register(frames[k - 1], frames[k], rng=reg_rng, with_covariance=False)
-            matches.append(inc.n_matches)
-            if inc.ok:
-                inliers.append(inc.n_inliers)
-                est.append(rotvec_from_quat(quat_from_matrix(inc.R_H)))
-                errs.append(np.linalg.norm(rotvec_from_quat(quat_from_matrix(inc.R_H @ dR.T))))
-            else:
-                why = why or inc.failure_reason
-        out["n_tracks"][t] = np.median(tracks)
-        out["n_matches"][t] = np.median(matches) if matches else 0
-        out["failed_steps"][t] = steps - len(est)
-        if not est:
-            reasons[t] = f"every step failed; first: {why}"
-            continue
-        out["n_inliers"][t] = np.median(inliers)
-        out["e_dtheta_deg"][t] = np.degrees(np.linalg.norm(np.mean(est, axis=0) - dtheta))
-        out["step_rms_deg"][t] = np.degrees(np.sqrt(np.mean(np.square(errs))))
+    streams = [child_seeds(ss, 3) for ss in seeds]          # per trial: attitude, observations, registration
+    qs_all = np.empty((M, steps + 1, 4))
+    for t, (s_att, _, _) in enumerate(streams):
+        qs_all[t, 0] = random_attitudes(np.random.default_rng(s_att))
+        for k in range(steps):
+            qs_all[t, k + 1] = quat_normalize(quat_multiply(dq, qs_all[t, k]))
+    for t0 in range(0, M, _TRIALS_PER_BATCH):
+        batch = range(t0, min(M, t0 + _TRIALS_PER_BATCH))
+        frames_of = _observed_frames(observer, T_CW, qs_all[batch.start:batch.stop], sun,
+                                     [streams[t][1] for t in batch])
+        for t, frames in zip(batch, frames_of, strict=True):
+            _register_trial(registrar, frames, qs_all[t], dq, dR, dtheta, T_CW, streams[t][2], out, reasons, t)
     out["failure_reason"] = reasons
     return out
+
+
+#: trials observed and triangulated together (the calibrated geometric mode batches their ray casting)
+_TRIALS_PER_BATCH = 20
+
+
+def _observed_frames(observer, T_CW: np.ndarray, qs: np.ndarray, sun_H: np.ndarray,
+                     obs_seeds: Sequence[np.random.SeedSequence]) -> list[list[Frame]]:
+    """Observe and triangulate the epochs ``qs (R, E, 4)`` of R trials, trial r with the stream ``obs_seeds[r]``.
+
+    The geometric observer takes the trials in one call (:meth:`closed_loop.GeometricObserver.observe_trials`,
+    each trial as its own :meth:`observe_epochs` call would); the rendered one epoch by epoch.  All
+    the epochs are triangulated in one batch (:func:`closed_loop.reconstruct_many`).
+    """
+    R, E = qs.shape[:2]
+    if isinstance(observer, GeometricObserver):
+        sun_E = np.broadcast_to(sun_H / np.linalg.norm(sun_H), (R, E, 3))
+        obs = observer.observe_trials(np.broadcast_to(T_CW, (R, E, *T_CW.shape)), qs, sun_E,
+                                      rngs=[np.random.default_rng(s) for s in obs_seeds])
+    else:
+        obs = []
+        for r in range(R):
+            rngs = np.random.default_rng(obs_seeds[r]).spawn(E)
+            obs.append([observer.observe(T_CW, qs[r, k], sun_H, rng=rngs[k]) for k in range(E)])
+    flat = reconstruct_many([o for trial in obs for o in trial])
+    return [flat[r * E:(r + 1) * E] for r in range(R)]
+
+
+def _register_trial(registrar, frames: list[Frame], qs: np.ndarray, dq: np.ndarray, dR: np.ndarray,
+                    dtheta: np.ndarray, T_CW: np.ndarray, s_reg: np.random.SeedSequence,
+                    out: dict[str, np.ndarray], reasons: np.ndarray, t: int) -> None:
+    """Register the steps of trial ``t`` and write its row of ``out`` / ``reasons``."""
+    steps = len(frames) - 1
+    reg_rng = np.random.default_rng(s_reg)
+    est, errs, inliers, matches = [], [], [], []
+    tracks = [f.obs.n_tracks for f in frames]
+    out["crlb_deg"][t] = _crlb_deg(frames[0], frames[1], qs[0], dq, T_CW)
+    why = ""
+    for k in range(1, steps + 1):
+        inc = registrar.register(frames[k - 1], frames[k], rng=reg_rng, with_covariance=False)
+        matches.append(inc.n_matches)
+        if inc.ok:
+            inliers.append(inc.n_inliers)
+            est.append(rotvec_from_quat(quat_from_matrix(inc.R_H)))
+            errs.append(np.linalg.norm(rotvec_from_quat(quat_from_matrix(inc.R_H @ dR.T))))
+        else:
+            why = why or inc.failure_reason
+    out["n_tracks"][t] = np.median(tracks)
+    out["n_matches"][t] = np.median(matches) if matches else 0
+    out["failed_steps"][t] = steps - len(est)
+    if not est:
+        reasons[t] = f"every step failed; first: {why}"
+        return
+    out["n_inliers"][t] = np.median(inliers)
+    out["e_dtheta_deg"][t] = np.degrees(np.linalg.norm(np.mean(est, axis=0) - dtheta))
+    out["step_rms_deg"][t] = np.degrees(np.sqrt(np.mean(np.square(errs))))
 
 
 def error_map_cell(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> dict[str, np.ndarray]:
