@@ -11,10 +11,11 @@ For one camera pose, target attitude and Sun direction, :func:`render` gives
 
 Rays are cast only through the region of interest (ROI): the projected bounding box of the target,
 widened by a margin and aligned to a 32-px grid (so SIFT's image pyramids of the crop and of the full
-image sample the same pixels); the result is placed in full-size arrays. Sensor noise is drawn per
-image tile (:class:`~vision.sensor.SensorModel`), so inside the ROI the image is the full-frame image
-exactly; outside it is the black level (zero signal: the default sensor's read noise, 0.13 DN, rounds
-to 0 there).
+image sample the same pixels); the result is kept over the ROI (:class:`RenderResult` builds
+full-size arrays on demand). Sensor noise is keyed by each pixel's position in the full image
+(:class:`~vision.sensor.SensorModel`), so inside the ROI the image is the full-frame image exactly;
+outside it is the black level (zero signal: the default sensor's read noise, 0.13 DN, rounds to 0
+there but for 4.4 × 10⁻⁵ of the pixels).
 
 Frames: the target's centre of mass is the origin of the Hill frame H (= world W); its attitude is
 ``q_HT`` (``R_HT`` maps body to Hill components); the camera pose is ``T_CW``.
@@ -29,6 +30,7 @@ from attitude.quaternion import check_quat, matrix_from_quat
 from vision.camera import PinholeCamera, check_pose
 from vision.earth import EarthScene
 from vision.observation import REASON_EARTH_SHADOW, REASON_OUTSIDE_FOV
+from vision.ray_coverage import coverage_mask
 from vision.render_result import RenderResult
 from vision.sensor import SensorModel
 from vision.target import Target
@@ -244,8 +246,9 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
     box, reason = _cast_box(camera, T, target, q, roi, roi_margin_px)
 
     def result(st: str, exposure_s: float = float("nan")) -> RenderResult:
-        return RenderResult(image, radiance, depth, mask, X_img, tri_img, lit_img, box, st, camera, T,
-                            exposure_s)
+        rs = (slice(box[1], box[3]), slice(box[0], box[2]))
+        return RenderResult(image[rs], radiance[rs], depth[rs], mask[rs], X_img[rs], tri_img[rs], lit_img[rs], box,
+                            st, camera, T, exposure_s)
 
     if reason:
         return result(reason)
@@ -329,58 +332,53 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
 # ----------------------------------------------------------------------------------------------
 
 
-def _mip_level_at(tex: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """:func:`_mip_level` evaluated at the hit pixels ``(rows, cols)`` only (the same float32 operations
-    on the same neighbour differences, so the same values; ``tex`` (h, w, 2) is NaN off target)."""
+def _mip_level_at(tex_hit: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """:func:`_mip_level` at the hit pixels ``(rows, cols)`` only, from their texel coordinates ``tex_hit``
+    (``(N, 2)`` float32): the same float32 operations on the same neighbour differences, so the same values.
+
+    The neighbours are read from two planes over the hits' bounding box padded by one NaN pixel (a
+    neighbour off the target or off the ROI is NaN there, as in :func:`_mip_level`).
+    """
     big = np.float32(1e6)
-    h, w = tex.shape[:2]
-    here = tex[rows, cols]
+    r0, c0 = int(rows.min()), int(cols.min())
+    hh, ww = int(rows.max()) - r0 + 3, int(cols.max()) - c0 + 3
+    flat = (rows - (r0 - 1)) * ww + (cols - (c0 - 1))
+    here = (tex_hit[:, 0], tex_hit[:, 1])
+    planes = []
+    for k in range(2):
+        plane = np.full(hh * ww, np.nan, dtype=np.float32)
+        plane[flat] = here[k]
+        planes.append(plane)
 
-    def norm_to(d_row: int, d_col: int) -> np.ndarray:
-        r, c = rows + d_row, cols + d_col
-        ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-        other = tex[np.clip(r, 0, h - 1), np.clip(c, 0, w - 1)]
-        d = other - here if d_row + d_col > 0 else here - other        # np.diff's order: later − earlier
-        n = np.sqrt((d ** 2).sum(-1))
-        return np.where(ok & np.isfinite(n), n, big)
+    def norm_to(offset: int) -> np.ndarray:
+        du = planes[0][flat + offset] - here[0]
+        dv = planes[1][flat + offset] - here[1]
+        n = np.sqrt(du * du + dv * dv)
+        return np.where(np.isfinite(n), n, big)
 
-    rho = np.maximum(np.minimum(norm_to(1, 0), norm_to(-1, 0)), np.minimum(norm_to(0, 1), norm_to(0, -1)))
+    rho = np.maximum(np.minimum(norm_to(ww), norm_to(-ww)), np.minimum(norm_to(1), norm_to(-1)))
     rho = np.where(rho >= big, 1.0, rho)
     with np.errstate(divide="ignore"):
         return np.log2(np.maximum(rho, 1.0)).astype(np.float32)
 
 
-#: meshes with more triangles than this are ray-cast over the whole ROI (the coverage raster would cost more)
-_COVERAGE_MAX_TRIANGLES = 20_000
+def _roi_arrays(box: tuple[int, int, int, int], image_dtype: type) -> tuple[np.ndarray, ...]:
+    """A view's output arrays over its ROI, as off the target: image, radiance, depth, mask, X_T, triangle, lit."""
+    shape = (box[3] - box[1], box[2] - box[0])
+    return (np.zeros(shape, dtype=image_dtype), np.zeros(shape, dtype=np.float32),
+            np.full(shape, np.nan, dtype=np.float32), np.zeros(shape, dtype=bool),
+            np.full(shape + (3,), np.nan, dtype=np.float32), np.full(shape, -1, dtype=np.int32),
+            np.zeros(shape, dtype=bool))
 
 
-def _coverage(camera: PinholeCamera, target: Target, c_T: np.ndarray, R_TC: np.ndarray,
-              box: tuple[int, int, int, int]) -> np.ndarray | None:
-    """ROI pixels whose ray can hit the target: the union of the projected triangles, dilated by 2 px.
+def _row_norm(a: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(a, axis=1)`` of an ``(N, 3)`` array, with the same additions in the same order."""
+    return np.sqrt(_row_dot(a, a))
 
-    A ray through a pixel centre hits a triangle only if the centre lies inside the triangle's
-    projection (all vertices in front of the camera), so casting only these rays gives the hits of the
-    whole ROI.  ``None`` (cast everything) when a vertex is not in front of the camera or the mesh is large.
-    """
-    import cv2
 
-    if len(target.triangles) > _COVERAGE_MAX_TRIANGLES:
-        return None
-    X_C = (target.vertices_T - c_T) @ R_TC
-    if np.any(X_C[:, 2] <= 1e-3):
-        return None
-    x0, y0, x1, y1 = box
-    u = camera.fx * X_C[:, 0] / X_C[:, 2] + camera.cx - x0
-    v = camera.fy * X_C[:, 1] / X_C[:, 2] + camera.cy - y0
-    shift = 4  # sub-pixel vertices: 1/16 px
-    pts = np.rint(np.stack([u, v], -1) * (1 << shift)).astype(np.int32)[target.triangles]
-    lim = (1 << 30) >> shift
-    if np.any(np.abs(pts) >= lim << shift):
-        return None
-    cover = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    for tri in pts:  # one triangle at a time: cv2.fillPoly's even-odd rule would cancel overlaps
-        cv2.fillConvexPoly(cover, tri, 1, lineType=cv2.LINE_8, shift=shift)
-    return cv2.dilate(cover, np.ones((5, 5), np.uint8)).astype(bool)
+def _row_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.sum(a * b, axis=1)`` of ``(N, 3)`` arrays, with the same additions in the same order."""
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
 
 
 def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, q_HT: ArrayLike,
@@ -417,18 +415,13 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
     for cam, T_v, rng in zip(cameras, T_all, rngs, strict=True):
         T, q, s_H = _validate(cam, T_v, target, q_HT, sun_H)
         R_HT = matrix_from_quat(q)
-        H, W = cam.height, cam.width
-        v = {"cam": cam, "T": T, "rng": np.random.default_rng(rng),
-             "image": np.zeros((H, W), dtype=sensor.dtype), "radiance": np.zeros((H, W), dtype=np.float32),
-             "depth": np.full((H, W), np.nan, dtype=np.float32), "mask": np.zeros((H, W), dtype=bool),
-             "X": np.full((H, W, 3), np.nan, dtype=np.float32), "tri": np.full((H, W), -1, dtype=np.int32),
-             "lit": np.zeros((H, W), dtype=bool), "exposure": float("nan")}
+        v = {"cam": cam, "T": T, "rng": np.random.default_rng(rng)}
         box, reason = _cast_box(cam, T, target, q, roi, roi_margin_px)
         v["box"], v["reason"] = box, reason
         if not reason:
             x0, y0, x1, y1 = box
             c_T, R_TC = _pose_in_body(T, R_HT)
-            cover = _coverage(cam, target, c_T, R_TC, box)
+            cover = coverage_mask(cam, target, c_T, R_TC, box)
             if cover is None:
                 cover = np.ones((y1 - y0, x1 - x0), dtype=bool)
             rows, cols = np.nonzero(cover)                              # row-major, as render's [hit]
@@ -459,7 +452,8 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
         got = np.isfinite(t_all[sl])
         rows, cols = v["rows"][got], v["cols"][got]
         hit = np.zeros((h, w), dtype=bool)
-        hit[rows, cols] = True
+        v["hit_flat"] = rows * w + cols
+        hit.reshape(-1)[v["hit_flat"]] = True
         v["hit"] = hit
         if not got.any():
             v["reason"] = REASON_OUTSIDE_FOV
@@ -468,14 +462,12 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
         bary = uv_all[sl][got].astype(np.float64)
         X = target.point_on_triangles(tid, bary)
         z = ((X - v["c_T"]) @ v["R_TC"])[:, 2]
-        n = target.triangle_normals_T[tid]
         vv = v["c_T"] - X
-        vv /= np.linalg.norm(vv, axis=1, keepdims=True)
-        n = np.where((np.sum(n * vv, axis=1) < 0)[:, None], -n, n)
-        tex = np.full((h, w, 2), np.nan, dtype=np.float32)
+        vv /= _row_norm(vv)[:, None]
+        n = target.triangle_normals_T[tid]
+        n = np.where((_row_dot(n, vv) < 0)[:, None], -n, n)
         tex_hit = target.texture_coords(tid, bary).astype(np.float32)
-        tex[rows, cols] = tex_hit
-        level = _mip_level_at(tex, rows, cols)
+        level = _mip_level_at(tex_hit, rows, cols)
         albedo = target.sample_albedo(tex_hit, level, tid).astype(np.float64)
         cos_i = n @ s_T
         lit = cos_i > 0.0
@@ -495,9 +487,9 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
             start += len(idx)
     out = []
     for v in views:
+        a = _roi_arrays(v["box"], sensor.dtype)
         if v["reason"]:
-            out.append(RenderResult(v["image"], v["radiance"], v["depth"], v["mask"], v["X"], v["tri"], v["lit"],
-                                    v["box"], v["reason"], v["cam"], v["T"], float("nan")))
+            out.append(RenderResult(*a, v["box"], v["reason"], v["cam"], v["T"], float("nan")))
             continue
         tid, lit, n, albedo = v["tid"], v["lit_hit"], v["n"], v["albedo"]
         L = albedo * np.maximum(v["cos_i"], 0.0) * lit
@@ -505,26 +497,25 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
             ks = np.array([m.specular for m in target.materials])[target.triangle_material[tid]]
             ns = np.array([m.shininess for m in target.materials])[target.triangle_material[tid]]
             hvec = s_T + v["view_dir"]
-            hvec /= np.maximum(np.linalg.norm(hvec, axis=1, keepdims=True), 1e-12)
-            L = L + ks * np.maximum(np.sum(n * hvec, axis=1), 0.0) ** ns * lit
+            hvec /= np.maximum(_row_norm(hvec), 1e-12)[:, None]
+            L = L + ks * np.maximum(_row_dot(n, hvec), 0.0) ** ns * lit
         L = f_sun * L + ambient * albedo
         if earth is not None:
             L = L + albedo * earth.albedo_irradiance(n @ R_HT.T, s_H)
-        x0, y0, x1, y1 = v["box"]
+        x0, y0 = v["box"][:2]
         hit = v["hit"]
-        rs = (slice(y0, y1), slice(x0, x1))
-        rad_roi = np.zeros(hit.shape, dtype=np.float32)
-        rad_roi[hit] = L
+        image, rad_roi, depth, mask, X_img, tri_img, lit_img = a
+        flat = v["hit_flat"]                                     # row-major, the order of [hit]
+        rad_roi.reshape(-1)[flat] = L
         if earth is not None:
             rad_roi[~hit] = earth.background(v["cam"], v["T"], v["box"], s_H)[~hit]
-        v["radiance"][rs] = rad_roi
-        v["depth"][rs][hit] = v["z"]
-        v["mask"][rs] = hit
-        v["X"][rs][hit] = v["X_hit"]
-        v["tri"][rs][hit] = tid
-        v["lit"][rs][hit] = lit & (f_sun > 0)
+        depth.reshape(-1)[flat] = v["z"]
+        mask[...] = hit
+        X_img.reshape(-1, 3)[flat] = v["X_hit"]
+        tri_img.reshape(-1)[flat] = tid
+        lit_img.reshape(-1)[flat] = lit & (f_sun > 0)
         exposure = sensor.exposure_for(rad_roi)
-        v["image"][rs] = sensor.apply(rad_roi, rng=v["rng"], exposure_s=exposure, origin_px=(x0, y0))
-        out.append(RenderResult(v["image"], v["radiance"], v["depth"], v["mask"], v["X"], v["tri"], v["lit"],
-                                v["box"], REASON_EARTH_SHADOW if f_sun == 0.0 else "", v["cam"], v["T"], exposure))
+        image[...] = sensor.apply(rad_roi, rng=v["rng"], exposure_s=exposure, origin_px=(x0, y0))
+        out.append(RenderResult(*a, v["box"], REASON_EARTH_SHADOW if f_sun == 0.0 else "", v["cam"], v["T"],
+                                exposure))
     return out

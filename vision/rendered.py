@@ -69,8 +69,9 @@ def detect_views(renders: Sequence[RenderResult], *, detector: str = "sift", for
     def one(r: RenderResult) -> Keypoints:
         if not r.ok:
             return detect(np.zeros((8, 8), np.uint8), detector=detector)
-        return detect(r.image, detector=detector, roi=r.roi, options=detector_options,
-                      mask=foreground_mask(r.image, threshold_dn=foreground_dn))
+        kp = detect(r.image_roi, detector=detector, options=detector_options,
+                    mask=_foreground_mask_roi(r, foreground_dn))
+        return dataclasses.replace(kp, uv_px=kp.uv_px + np.array(r.roi[:2], dtype=float))
 
     if int(threads) <= 1 or len(renders) < 2:
         return [one(r) for r in renders]
@@ -132,6 +133,16 @@ def label_tracks(obs: Observation, renders: Sequence[RenderResult], target: Targ
     return dataclasses.replace(obs, feature_id=fid, X_T_true=X_true)
 
 
+def _foreground_mask_roi(r: RenderResult, threshold_dn: float) -> np.ndarray:
+    """:func:`foreground_mask` of the full image, over the ROI only: the ROI padded with the full image's
+    zeros by 2 px (the reach of the 3 × 3 closing) on its sides inside the image."""
+    x0, y0, x1, y1 = r.roi
+    H, W = r.camera.height, r.camera.width
+    pad = ((2 * (y0 > 0), 2 * (y1 < H)), (2 * (x0 > 0), 2 * (x1 < W)))
+    m = foreground_mask(np.pad(r.image_roi, pad), threshold_dn=threshold_dn)
+    return m[pad[0][0]:m.shape[0] - pad[0][1], pad[1][0]:m.shape[1] - pad[1][1]]
+
+
 def foreground_mask(image: ArrayLike, *, threshold_dn: float = 3.0) -> np.ndarray:
     """Target pixels segmented from the dark sky: ``image > threshold_dn``, closed with a 3×3 kernel.
 
@@ -158,7 +169,8 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
     ``threads``: views detected concurrently (:func:`detect_views`; the same keypoints).
 
     ``noise_model="fixed"`` gives every keypoint ``pixel_sigma_px``; ``"calibrated"`` gives each one
-    the σ measured for its SIFT size at its view's image scale (``calibration``, default: the shipped calibration of the
+    the σ measured for its SIFT size at its view's image scale, inflated as measured for its track
+    (:meth:`vision.calibration.SiftCalibration.track_sigma_px`; ``calibration``, default: the shipped calibration of the
     target, :func:`vision.calibration.load_calibration`) as ``track_sigma_px``, and records their
     root mean square as ``pixel_sigma_px``.
     Returns an empty, flagged observation (never raises) when the target is in Earth's shadow or seen
@@ -186,9 +198,8 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
         return obs
     if noise_model == "calibrated":
         cal = calibration if calibration is not None else load_calibration(target.name)
-        # image scale of each view: camera distance to the target's centre over the focal length
-        fp = np.linalg.norm(obs.T_CW[:, :3, 3], axis=1) / np.sqrt(obs.K[:, 0, 0] * obs.K[:, 1, 1])
-        sig = cal.sigma_for_size(obs.keypoint_size_px, fp[None, :])
+        # σ of the keypoint's size at its view's image scale, inflated for its track (class, camera spread)
+        sig = cal.track_sigma_px(obs)
         rms = float(np.sqrt(np.nanmean(sig**2)))
         obs = dataclasses.replace(obs, track_sigma_px=sig, pixel_sigma_px=rms)
     return label_tracks(obs, renders, target, q_HT, tol_px=truth_tol_px)

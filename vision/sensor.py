@@ -12,9 +12,16 @@ The renderer produces a noiseless *radiance* image in relative units: 1.0 is the
    well under 1 % of σ above 20 e⁻, and read noise dominates below); clipping at the full well;
 4. quantisation: ``DN = round(e · (2**bits - 1) / full_well_e)``, clipped to ``[0, 2**bits - 1]``.
 
-Noise is drawn per 32 × 32-pixel tile of the full image, each tile from its own stream keyed by one
-draw of ``rng`` and the tile's position: a region of interest rendered at ``origin_px`` gets exactly
-the noise the same pixels get in a full-frame image.
+Noise streams (``noise_stream``), both keyed by draws of ``rng`` and the pixel's position in the full
+image, so a region of interest rendered at ``origin_px`` gets exactly the noise the same pixels get in
+a full-frame image:
+
+- ``"pixel"`` (default): one counter-based normal per pixel with signal, and on pixels whose mean
+  signal is zero only the rare read-noise exceedances that reach one digital number, drawn directly
+  (:mod:`vision.pixel_noise`); the same law as one normal per pixel, at the cost of the pixels with
+  signal (issue 16 item 7);
+- ``"tiles"``: one NumPy generator per 32 × 32 tile of the full image, keyed by the tile's position,
+  a normal for every pixel (the stream before issue 16 item 7, kept for the benchmark's baseline).
 
 With ``auto_exposure`` (the default) the exposure time is chosen per image, as a camera's
 auto-exposure does: the ``auto_exposure_percentile`` of the non-zero radiance is placed at
@@ -33,7 +40,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["SensorModel"]
+from vision.pixel_noise import dark_exceedances, pixel_normals
+
+__all__ = ["NOISE_STREAMS", "SensorModel"]
+
+#: ``SensorModel.noise_stream`` values (module docstring)
+NOISE_STREAMS = ("pixel", "tiles")
+
+#: above this exceedance probability per dark pixel, every pixel gets its own normal (no sparse draw)
+_SPARSE_MAX_PROBABILITY = 0.05
 
 
 @dataclass(frozen=True)
@@ -62,6 +77,8 @@ class SensorModel:
         Percentile (of non-zero radiance, in [0, 100]) placed at this fraction of the full well.
     min_exposure_s, max_exposure_s : float
         Limits of the automatic exposure, seconds.
+    noise_stream : str
+        ``"pixel"`` or ``"tiles"`` (module docstring): the same noise law, different draws.
     """
 
     exposure_s: float = 1.0e-3
@@ -76,8 +93,11 @@ class SensorModel:
     auto_exposure_level: float = 0.8
     min_exposure_s: float = 1.0e-5
     max_exposure_s: float = 2.0e-2
+    noise_stream: str = "pixel"
 
     def __post_init__(self) -> None:
+        if self.noise_stream not in NOISE_STREAMS:
+            raise ValueError(f"noise_stream must be one of {NOISE_STREAMS}, got {self.noise_stream!r}")
         for name in ("exposure_s", "responsivity_e_per_s", "full_well_e"):
             v = float(getattr(self, name))
             if not (np.isfinite(v) and v > 0):
@@ -162,14 +182,52 @@ class SensorModel:
         if self.psf_sigma_px > 0:
             L = cv2.GaussianBlur(L, (0, 0), sigmaX=float(self.psf_sigma_px),
                                  borderType=cv2.BORDER_REPLICATE)
+        if self.noise_stream == "pixel":
+            return self._digitise_pixel_stream(L, t, rng, origin_px)
         e = L.astype(np.float64) * (t * self.responsivity_e_per_s)
         var = (e if self.shot_noise else 0.0) + self.read_noise_e ** 2
         if np.any(var > 0):
             key = int(rng.integers(2 ** 63))
             e = e + np.sqrt(var) * _tile_normals(key, e.shape, origin_px)
+        return self._digitise(e)
+
+    def _digitise(self, e: np.ndarray) -> np.ndarray:
+        """Electrons to digital numbers: clip at 0 and the full well, quantise, clip to the ADC range."""
         e = np.clip(e, 0.0, self.full_well_e)
         dn = np.rint(e * (self.max_dn / self.full_well_e))
         return np.clip(dn, 0, self.max_dn).astype(self.dtype)
+
+    def _digitise_pixel_stream(self, L: np.ndarray, t: float, rng: np.random.Generator,
+                               origin_px: tuple[int, int]) -> np.ndarray:
+        """:meth:`apply` with the ``"pixel"`` stream: the same arithmetic as ``"tiles"`` on every pixel
+        with signal; on the others (mean 0 e⁻) only the read-noise draws that reach one digital number."""
+        key_signal, key_dark = (int(k) for k in rng.integers(2 ** 63, size=2))
+        x0, y0 = (int(v) for v in origin_px)
+        dn_per_e = self.max_dn / self.full_well_e
+        read = float(self.read_noise_e)
+        # z above which read noise alone reaches half a digital number: DN >= 1 on a dark pixel
+        z_dark = 0.5 / (read * dn_per_e) if read > 0 else np.inf
+        sparse = read == 0 or _tail_probability(z_dark) <= _SPARSE_MAX_PROBABILITY
+        signal = L > 0 if sparse else np.ones(L.shape, dtype=bool)
+        rows, cols = np.nonzero(signal)
+        out = np.zeros(L.shape, dtype=self.dtype)
+        e = L[rows, cols].astype(np.float64) * (t * self.responsivity_e_per_s)
+        var = (e if self.shot_noise else 0.0) + read ** 2
+        if np.any(var > 0):
+            e = e + np.sqrt(var) * pixel_normals(key_signal, rows + y0, cols + x0)
+        out[rows, cols] = self._digitise(e)
+        if sparse and read > 0:
+            r, c, z = dark_exceedances(key_dark, L.shape, (x0, y0), z_dark)
+            dark = ~signal[r, c]
+            out[r[dark], c[dark]] = self._digitise(read * z[dark])
+        return out
+
+
+def _tail_probability(z: float) -> float:
+    """``Q(z) = P(Z > z)`` of a standard normal."""
+    from scipy.special import ndtr
+
+    return float(ndtr(-z))
 
 
 _TILE_PX = 32

@@ -8,17 +8,25 @@ epoch's cross-view matching and ground-truth labelling (``vision.rendered.observ
 
 Paths
 -----
-- today's (the baseline, before issue 16): ``render_views(batched=False)`` (one
-  ``vision.render.render`` per view) and the views' SIFT one after the other, OpenCV with its
-  default thread count;
-- fast: ``render_views`` (all views in one ``vision.render.render_batch``: one Open3D cast, rays
-  only over the projected triangles, the mip level at the hit pixels; bit-identical images) and the
-  views detected on two threads (``detect_views(threads=2)``, OpenCV one thread each);
-- fast, one thread: the same with one detection thread and OpenCV on one thread: the work saved,
-  which is what a sweep worker gains when every core already runs a worker.
+- today's (the baseline, before issue 16 item 7): ``render_views(batched=False)`` (one
+  ``vision.render.render`` per view: rays over the whole ROI, full-size arrays) with the sensor's
+  ``noise_stream="tiles"`` (one NumPy generator per 32 × 32 tile, a normal for every ROI pixel);
+- new: ``render_views`` (all views in one ``vision.render.render_batch``: one Open3D cast, rays
+  only where a projected triangle can cover the pixel, mip levels at the hit pixels, ROI-sized
+  arrays) with the default ``noise_stream="pixel"`` (counter-based normals on the pixels with
+  signal, the rare dark-pixel exceedances drawn directly: the same noise law, other draws).
 
-Both paths are timed alternately in the same run (best of ``repeat``); every row checks that the
-two give the same tracks (pixel positions and truth labels) on every epoch.
+Both detect with ``detect_views`` (SIFT over each view's ROI, the foreground mask over the ROI) on
+one thread with OpenCV on one thread: like for like, the work per camera-frame, which is what a sweep
+worker gains when every core already runs a worker.  They are timed alternately in the same run
+(best of ``repeat``), in process CPU time (all threads; little disturbed by other jobs on the
+machine) and in wall time.
+
+Same matches: the noise draws differ, so the check is (1) with a noise-free sensor (no shot or read
+noise) both paths give identical tracks (pixel positions and truth labels) on every epoch, and
+(2) the noise law is the same (``tests/vision/test_pixel_noise.py``: mean, variance and the dark-pixel
+exceedance rate against their analytic values); with noise, the rows give both paths' median tracks
+per epoch.
 """
 
 from __future__ import annotations
@@ -44,8 +52,8 @@ def _scene(distance_m: float, epochs: int):
     return obs.camera, obs.target, symmetric_T_CW(cfg), qs, sun / np.linalg.norm(sun)
 
 
-def _observe(scene, *, batched: bool, threads: int, cv_threads: int, stages: dict | None = None):
-    """The observations of every epoch of ``scene`` by one path (stage times added to ``stages``)."""
+def _observe(scene, *, batched: bool, sensor, stages: dict | None = None):
+    """The observations of every epoch of ``scene`` by one path (CPU seconds per stage added to ``stages``)."""
     import cv2
 
     from vision.features import match_views
@@ -53,20 +61,20 @@ def _observe(scene, *, batched: bool, threads: int, cv_threads: int, stages: dic
 
     cam, target, T, qs, sun = scene
     before = cv2.getNumThreads()
-    cv2.setNumThreads(cv_threads)
+    cv2.setNumThreads(1)
     out = []
     try:
         for k, q in enumerate(qs):
-            t0 = time.perf_counter()
-            renders = render_views(cam, T, target, q, sun, rng=k, batched=batched)
-            t1 = time.perf_counter()
-            kps = detect_views(renders, threads=threads)
-            t2 = time.perf_counter()
+            t0 = time.process_time()
+            renders = render_views(cam, T, target, q, sun, rng=k, batched=batched, sensor=sensor)
+            t1 = time.process_time()
+            kps = detect_views(renders)
+            t2 = time.process_time()
             obs = match_views(kps, cam, T)
-            t3 = time.perf_counter()
+            t3 = time.process_time()
             if obs.ok:
                 obs = label_tracks(obs, renders, target, q)
-            t4 = time.perf_counter()
+            t4 = time.process_time()
             out.append(obs)
             if stages is not None:
                 for name, dt in (("render", t1 - t0), ("SIFT", t2 - t1), ("match", t3 - t2), ("label", t4 - t3)):
@@ -82,47 +90,43 @@ def _same_tracks(a, b) -> bool:
 
 
 def run(*, quick: bool = False) -> list[BenchRow]:
-    import cv2
+    from vision.sensor import SensorModel
 
     epochs, repeat = (2, 1) if quick else (8, 3)
-    default_threads = cv2.getNumThreads()
+    sensors = {"today": SensorModel(noise_stream="tiles"), "new": SensorModel()}
+    batched = {"today": False, "new": True}
     rows: list[BenchRow] = []
     for d in DISTANCES_M:
         scene = _scene(d, epochs)
         frames = epochs * len(scene[2])
-        today = {"batched": False, "threads": 1, "cv_threads": default_threads}
-        paths = {"today": today, "fast": {"batched": True, "threads": 2, "cv_threads": 1},
-                 "today, 1 thread": {**today, "cv_threads": 1},
-                 "fast, 1 thread": {"batched": True, "threads": 1, "cv_threads": 1}}
-        _observe(scene, **paths["fast"])  # warm-up: scene BVH, texture pyramid, imports
-        best = dict.fromkeys(paths, float("inf"))
-        cpu = dict.fromkeys(paths, float("inf"))
-        stages: dict[str, float] = {}
+        _observe(scene, batched=True, sensor=None)  # warm-up: scene BVH, texture pyramid, compiled kernels
+        wall = dict.fromkeys(sensors, float("inf"))
+        cpu = dict.fromkeys(sensors, float("inf"))
+        stages = {name: {} for name in sensors}
         results = {}
         for _ in range(repeat):
-            for name, kw in paths.items():
+            for name in sensors:
                 t0, c0 = time.perf_counter(), time.process_time()
-                results[name] = _observe(scene, **kw, stages=stages if name == "today, 1 thread" else None)
-                best[name] = min(best[name], time.perf_counter() - t0)
+                results[name] = _observe(scene, batched=batched[name], sensor=sensors[name], stages=stages[name])
+                wall[name] = min(wall[name], time.perf_counter() - t0)
                 cpu[name] = min(cpu[name], time.process_time() - c0)
-        same = all(_same_tracks(results["today"], results[k]) for k in paths)
-        tracks = int(np.median([o.n_tracks for o in results["today"]]))
-        check = f"same tracks on all {epochs} epochs: {'yes' if same else 'NO'}; median {tracks} tracks per epoch"
+        quiet = {name: SensorModel(shot_noise=False, read_noise_e=0.0, noise_stream=s.noise_stream)
+                 for name, s in sensors.items()}
+        same = _same_tracks(*(_observe(scene, batched=batched[n], sensor=quiet[n]) for n in sensors))
+        med = {n: int(np.median([o.n_tracks for o in results[n]])) for n in sensors}
+        check = (f"noise-free: same tracks on all {epochs} epochs: {'yes' if same else 'NO'}; with noise, median "
+                 f"tracks per epoch {med['new']} (today {med['today']})")
         rows.append(throughput_row(
-            f"rendered mode, 3 views at {d:.0f} m: batched render, 2 detection threads", best["fast"],
-            best["today"], frames, "camera-frames/s", f"today's path (view by view, OpenCV {default_threads} threads)",
+            f"rendered mode, 3 views at {d:.0f} m: CPU time, new path", cpu["new"], cpu["today"], frames,
+            "camera-frames per CPU-s", "today's path (view by view, tile noise), one thread",
             note=check + "; target >= 2x"))
         rows.append(throughput_row(
-            f"rendered mode, 3 views at {d:.0f} m: batched render, one thread", best["fast, 1 thread"],
-            best["today, 1 thread"], frames, "camera-frames/s", "today's path on one thread",
-            note=check + "; Open3D casts on its own threads in both"))
-        rows.append(throughput_row(
-            f"rendered mode, 3 views at {d:.0f} m: CPU time, batched render, one thread", cpu["fast, 1 thread"],
-            cpu["today, 1 thread"], frames, "camera-frames per CPU-s", "today's path on one thread",
-            note="process CPU time (all threads): the work per frame, what a sweep worker gains; "
-                 "insensitive to other jobs on the machine"))
-        per_frame = {k: 1e3 * v / (repeat * frames) for k, v in stages.items()}
-        rows.append(BenchRow(
-            f"today's path at {d:.0f} m, one thread: ms per camera-frame", sum(per_frame.values()), "ms",
-            note=", ".join(f"{k} {v:.1f}" for k, v in per_frame.items())))
+            f"rendered mode, 3 views at {d:.0f} m: wall time, new path, one thread", wall["new"], wall["today"],
+            frames, "camera-frames/s", "today's path, one thread",
+            note="wall time on a shared machine: other jobs slow both"))
+        for name in sensors:
+            per_frame = {k: 1e3 * v / (repeat * frames) for k, v in stages[name].items()}
+            rows.append(BenchRow(
+                f"{name}'s path at {d:.0f} m, one thread: CPU ms per camera-frame", sum(per_frame.values()), "ms",
+                note=", ".join(f"{k} {v:.1f}" for k, v in per_frame.items())))
     return rows

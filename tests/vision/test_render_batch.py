@@ -89,3 +89,48 @@ def test_rendered_mode_fast_path_gives_the_same_tracks_as_view_by_view():
     assert o1.n_tracks > 10
     np.testing.assert_array_equal(o1.uv_px, o2.uv_px)
     np.testing.assert_array_equal(o1.feature_id, o2.feature_id)
+
+
+@pytest.mark.parametrize("distance_m", [40.0, 80.0])
+def test_noise_free_new_path_gives_todays_images_keypoints_and_tracks(distance_m):
+    """The new path (render_batch, ROI-sized arrays, the "pixel" noise stream) against today's
+    (render view by view, the "tiles" stream) on a noise-free sensor: the same images, hence the
+    same keypoints and tracks (with noise the draws differ and only the law is the same:
+    tests/vision/test_pixel_noise.py)."""
+    from vision.rendered import detect_views, observe_renders, render_views
+    from vision.sensor import SensorModel
+
+    cam = PinholeCamera.from_fov(1024, 1024, fov_x_deg=20.0)
+    target = fy1_target(seed=0)
+    T = _cone(distance_m)
+    q = np.array([0.7, -0.2, 0.5, 0.4]) / np.linalg.norm([0.7, -0.2, 0.5, 0.4])
+    sun = np.array([1.0, -0.5, 0.6])
+    today = render_views(cam, T, target, q, sun, rng=3, batched=False,
+                         sensor=SensorModel(shot_noise=False, read_noise_e=0.0, noise_stream="tiles"))
+    new = render_views(cam, T, target, q, sun, rng=4, sensor=SensorModel(shot_noise=False, read_noise_e=0.0))
+    for a, b in zip(today, new, strict=True):
+        assert a.roi == b.roi
+        np.testing.assert_array_equal(a.image_roi, b.image_roi)
+    for a, b in zip(detect_views(today), detect_views(new), strict=True):
+        np.testing.assert_array_equal(a.uv_px, b.uv_px)
+        np.testing.assert_array_equal(a.descriptors, b.descriptors)
+    o1, o2 = observe_renders(today, target, q), observe_renders(new, target, q)
+    assert o1.n_tracks > 10
+    np.testing.assert_array_equal(o1.uv_px, o2.uv_px)
+    np.testing.assert_array_equal(o1.feature_id, o2.feature_id)
+
+
+def test_detection_over_the_roi_equals_detection_in_the_full_image():
+    """detect_views works on the ROI arrays; the full-image detector with the full-image foreground
+    mask (the path before) finds the same keypoints."""
+    from vision.features import detect
+    from vision.rendered import detect_views, foreground_mask, render_views
+
+    cam = PinholeCamera.from_fov(1024, 1024, fov_x_deg=20.0)
+    q = np.array([0.8, 0.3, -0.4, 0.3]) / np.linalg.norm([0.8, 0.3, -0.4, 0.3])
+    renders = render_views(cam, _cone(60.0), fy1_target(seed=0), q, [1.0, -0.5, 0.6], rng=8)
+    for r, k in zip(renders, detect_views(renders), strict=True):
+        ref = detect(r.image, roi=r.roi, mask=foreground_mask(r.image))
+        assert len(ref) > 20
+        np.testing.assert_array_equal(k.uv_px, ref.uv_px)
+        np.testing.assert_array_equal(k.descriptors, ref.descriptors)

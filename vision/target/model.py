@@ -223,9 +223,13 @@ class Target:
         """
         tid = np.asarray(triangle_id, dtype=np.int64)
         b = np.asarray(bary_uv, dtype=float)
-        p = self.vertices_T[self.triangles[tid]]
-        return ((1.0 - b[..., 0] - b[..., 1])[..., None] * p[..., 0, :] + b[..., 0, None] * p[..., 1, :]
-                + b[..., 1, None] * p[..., 2, :])
+        p0, p1, p2 = (corner[tid] for corner in self._triangle_corners())
+        return (1.0 - b[..., 0] - b[..., 1])[..., None] * p0 + b[..., 0, None] * p1 + b[..., 1, None] * p2
+
+    def _triangle_corners(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The first, second and third corner of every triangle, ``(F, 3)`` each (contiguous gathers)."""
+        return self._cached("corners", lambda: tuple(np.ascontiguousarray(self.vertices_T[self.triangles[:, k]])
+                                                     for k in range(3)))
 
     def texture_coords(self, triangle_id: ArrayLike, bary_uv: ArrayLike) -> np.ndarray:
         """Atlas texel coordinates ``(..., 2)`` at barycentric ``(b1, b2)`` on triangles."""

@@ -1,0 +1,86 @@
+"""The pixels of a region of interest whose camera ray can hit the target (which rays to cast).
+
+A ray through a pixel centre hits a triangle only if the centre lies in the triangle's projection
+(all vertices in front of the camera), so casting the rays of the pixels near the projected
+triangles finds every hit of the whole ROI, and the renderer's images do not depend on it
+(:func:`vision.render.render_batch`).  :func:`coverage_mask` rasterises every projected triangle
+grown by ``pad_px`` (a pixel centre within ``pad_px`` of the triangle is covered; edge functions in a
+compiled loop, cached on disk by Numba) and dilates the result by 2 px, so it contains the pixels that
+OpenCV's ``fillConvexPoly`` would draw for the same triangles, dilated the same way.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from vision.camera import PinholeCamera
+from vision.target import Target
+
+__all__ = ["coverage_mask"]
+
+
+@numba.njit(cache=True, nogil=True)
+def _raster_grown_triangles(u: np.ndarray, v: np.ndarray, triangles: np.ndarray, pad_px: float,
+                            cover: np.ndarray) -> None:  # pragma: no cover - compiled
+    h, w = cover.shape
+    for k in range(triangles.shape[0]):
+        a, b, c = triangles[k, 0], triangles[k, 1], triangles[k, 2]
+        xa, ya, xb, yb, xc, yc = u[a], v[a], u[b], v[b], u[c], v[c]
+        x_lo = max(int(math.floor(min(xa, xb, xc) - pad_px)), 0)
+        x_hi = min(int(math.ceil(max(xa, xb, xc) + pad_px)), w - 1)
+        y_lo = max(int(math.floor(min(ya, yb, yc) - pad_px)), 0)
+        y_hi = min(int(math.ceil(max(ya, yb, yc) + pad_px)), h - 1)
+        if x_lo > x_hi or y_lo > y_hi:
+            continue
+        area2 = (xb - xa) * (yc - ya) - (yb - ya) * (xc - xa)
+        l_ab = math.hypot(xb - xa, yb - ya)
+        l_bc = math.hypot(xc - xb, yc - yb)
+        l_ca = math.hypot(xa - xc, ya - yc)
+        degenerate = abs(area2) <= 1e-9 * (l_ab * l_ab + l_bc * l_bc + l_ca * l_ca) + 1e-12
+        s = 1.0 if area2 > 0 else -1.0
+        for y in range(y_lo, y_hi + 1):
+            for x in range(x_lo, x_hi + 1):
+                if degenerate or (
+                        s * ((xb - xa) * (y - ya) - (yb - ya) * (x - xa)) >= -pad_px * l_ab
+                        and s * ((xc - xb) * (y - yb) - (yc - yb) * (x - xb)) >= -pad_px * l_bc
+                        and s * ((xa - xc) * (y - yc) - (ya - yc) * (x - xc)) >= -pad_px * l_ca):
+                    cover[y, x] = 1
+
+
+def coverage_mask(camera: PinholeCamera, target: Target, c_T: np.ndarray, R_TC: np.ndarray,
+                  box: tuple[int, int, int, int], *, pad_px: float = 1.0) -> np.ndarray | None:
+    """ROI pixels whose ray can hit the target, ``(h, w)`` bool over ``box``.
+
+    Parameters
+    ----------
+    camera : PinholeCamera
+    target : Target
+    c_T : ndarray, (3,)
+        Camera centre, body frame, metres.
+    R_TC : ndarray, (3, 3)
+        Camera-to-body rotation.
+    box : (x0, y0, x1, y1)
+        The ROI, pixels (half-open).
+    pad_px : float
+        Pixel centres within this distance of a projected triangle are covered (before the 2-px dilation).
+
+    Returns
+    -------
+    ndarray of bool, or None
+        ``None`` (cast every ray of the ROI) when a vertex is not in front of the camera.
+    """
+    import cv2
+
+    X_C = (target.vertices_T - c_T) @ R_TC
+    if np.any(X_C[:, 2] <= 1e-3):
+        return None
+    x0, y0, x1, y1 = box
+    u = camera.fx * X_C[:, 0] / X_C[:, 2] + camera.cx - x0
+    v = camera.fy * X_C[:, 1] / X_C[:, 2] + camera.cy - y0
+    cover = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    _raster_grown_triangles(np.ascontiguousarray(u), np.ascontiguousarray(v),
+                            np.ascontiguousarray(target.triangles, dtype=np.int64), float(pad_px), cover)
+    return cv2.dilate(cover, np.ones((5, 5), np.uint8)).astype(bool)
