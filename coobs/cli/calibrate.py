@@ -24,6 +24,46 @@ def _fmt(v: object, spec: str = ".3g") -> str:
     return "-" if v is None else format(v, spec)
 
 
+def _nees_only(path: Path, base: CalibrationSpec, attitudes: int | None, out: Path | None) -> None:
+    from experiments.studies.nees_calibration import NeesSpec, add_triangulation_nees
+
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise fail(f"--nees-only: no calibration file at {path}") from None
+    n = int(attitudes) if attitudes is not None else base.nees_attitudes
+    spec = NeesSpec(attitudes=n, angles_deg=tuple(base.nees_angles_deg))
+    command = " ".join(["coobs calibrate --nees-only", *(["--quick"] if base is QUICK else []),
+                        *([f"--attitudes {attitudes}"] if attitudes is not None else []),
+                        *([f"--out {out}"] if out is not None else [])])
+    total = len(data["targets"]) * max(len(t["ranges_m"]) for t in data["targets"].values()) * n
+    update, stop = progress_bar()
+    done = [0]
+
+    def step() -> None:
+        done[0] += 1
+        update(done[0], total)
+
+    try:
+        data = add_triangulation_nees(data, spec, command=command, progress=step)
+    finally:
+        stop()
+    path.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+    table = Table(title=f"triangulation σ² inflation ({data['provenance']['triangulation_nees']['wall_s']} s) -> {path}")
+    for col in ("target", "range [m]", "angle [deg]", *(f"{c}: inflation (points)" for c in
+                                                       data["targets"][next(iter(data["targets"]))]
+                                                       ["triangulation_nees"]["classes"])):
+        table.add_column(col, justify="right")
+    for name, t in data["targets"].items():
+        tn = t["triangulation_nees"]
+        for r, range_m in enumerate(t["ranges_m"]):
+            for a, ang in enumerate(tn["angle_deg"]):
+                table.add_row(name, f"{range_m:g}", f"{ang:g}", *(f"{_fmt(v)} ({p})" for v, p in
+                                                                 zip(tn["sigma2_inflation"][r][a],
+                                                                     tn["points"][r][a], strict=True)))
+    console.print(table)
+
+
 def calibrate(
     out: Path = typer.Option(None, "--out", help="JSON file to write (default: the shipped "
                              "vision/calibration/rendered_sift.json)."),
@@ -35,6 +75,10 @@ def calibrate(
     ranges_m: str = typer.Option(",".join(f"{r:g}" for r in DEFAULT.ranges_m), "--ranges-m",
                                  help="Comma-separated camera ranges, m."),
     seed: int = typer.Option(DEFAULT.seed, "--seed", help="Root seed."),
+    nees_only: bool = typer.Option(False, "--nees-only", help="Only (re)measure the triangulation σ² inflation "
+                                   "of an existing calibration file (--out, default the shipped one) with its "
+                                   "own targets, ranges and seed (--attitudes: its attitudes per target and range); the other "
+                                   "tables are kept."),
 ) -> None:
     """Measure SIFT noise, detection density, match and association rates on rendered images against their truth."""
     base = QUICK if quick else DEFAULT
@@ -56,6 +100,9 @@ def calibrate(
     except ValueError as exc:
         raise fail(f"--ranges-m/--targets: {exc}") from None
     path = Path(out) if out is not None else calibration_path()
+    if nees_only:
+        _nees_only(path, base, attitudes, out)
+        return
     command = " ".join(["coobs calibrate", *(["--quick"] if quick else []),
                         *([f"--attitudes {attitudes}"] if attitudes is not None else []),
                         f"--targets {','.join(names)}", f"--ranges-m {','.join(f'{r:g}' for r in rng_m)}",

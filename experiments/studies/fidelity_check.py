@@ -7,7 +7,9 @@ attitudes) is observed once, triangulated once, and registered twice: with the c
 maximum-likelihood fit (``ml``) and with the robust Kabsch fit (``ransac``).  Per trial it records
 the median tracks per epoch, the per-step RMS error of both fits, the Cramér–Rao bound of each step
 with the observation's own σ per track and view (``Observation.sigma_uv_px``), and the
-triangulation NEES of every correct point (truth from ``X_T_true``).
+triangulation NEES of every correct point (truth from ``X_T_true``; in the rendered modes with the
+truth point's own error accounted for, :mod:`experiments.studies.triangulation_consistency`, the
+plain statistic beside it).
 
 ``python -m experiments.studies.fidelity_check --help`` runs it, ``--table`` prints the comparison
 (``docs/reproduction.md``).
@@ -33,9 +35,11 @@ from attitude.quaternion import (
     rotvec_from_quat,
 )
 from closed_loop import OBSERVERS, REGISTRARS, Frame, GeometricObserver, reconstruct_many
+from experiments.studies.triangulation_consistency import track_nees
 from experiments.sweep import cell_seed_sequences, child_seeds
 from formation.geometry import symmetric_views
 from reconstruction.accuracy import attitude_increment_crlb
+from vision.calibration import load_calibration
 from vision.camera import PinholeCamera
 from vision.target import Target, fy1_target, load_mesh
 
@@ -99,14 +103,19 @@ def same_surface_points(prev, curr, *, tol_px: float = 1.0) -> tuple[np.ndarray,
     return ia[order[first]], ib[j[order[first]]]
 
 
-def _crlb_rad(prev: Frame, curr: Frame, q_HT: np.ndarray, dR: np.ndarray) -> float:
-    """Bound of one increment: the points tracked at both epochs, each epoch's views and σ per track and view."""
+def _crlb_rad(prev: Frame, curr: Frame, q_HT: np.ndarray, dR: np.ndarray, cal=None) -> float:
+    """Bound of one increment: the points tracked at both epochs, each epoch's views and σ per track and view
+    (the observation's; with a calibration ``cal``, its σ for increments, ``track_sigma_px(increment=True)``)."""
     ip, ic = same_surface_points(prev.obs, curr.obs)
     if ip.size < 3:
         return float("nan")
     X_W = prev.obs.X_T_true[ip] @ matrix_from_quat(q_HT).T
-    b = attitude_increment_crlb(X_W, prev.obs.K, prev.obs.T_CW, pixel_sigma_px=prev.obs.sigma_uv_px[ip],
-                                pixel_sigma_px_next=curr.obs.sigma_uv_px[ic], visible=prev.obs.seen[ip],
+    s_prev, s_curr = prev.obs.sigma_uv_px, curr.obs.sigma_uv_px
+    if cal is not None:
+        s_prev = np.where(prev.obs.seen, cal.track_sigma_px(prev.obs, increment=True), s_prev)
+        s_curr = np.where(curr.obs.seen, cal.track_sigma_px(curr.obs, increment=True), s_curr)
+    b = attitude_increment_crlb(X_W, prev.obs.K, prev.obs.T_CW, pixel_sigma_px=s_prev[ip],
+                                pixel_sigma_px_next=s_curr[ic], visible=prev.obs.seen[ip],
                                 visible_next=curr.obs.seen[ic], R_delta=dR)
     return float(b.rms_angle_rad) if bool(b.ok) else float("nan")
 
@@ -129,10 +138,11 @@ def check_cell(cell: CheckCell) -> dict:
     sun = np.asarray(cell.sun_H, dtype=float)
     sun = sun / np.linalg.norm(sun)
     seeds = cell_seed_sequences(cell.seed, {}, cell.trials)
+    cal = load_calibration(observer.target.name) if (kind, noise) == ("rendered", "calibrated") else None
     out = {k: [] for k in ("tracks", "ml_step_rms_deg", "ransac_step_rms_deg", "crlb_deg",
-                           "ml_over_crlb", "false_track_fraction", "ml_failed_steps", "ransac_failed_steps",
+                           "ml_over_crlb", "crlb_increment_deg", "ml_over_crlb_increment", "false_track_fraction", "ml_failed_steps", "ransac_failed_steps",
                            "pairs_per_step")}
-    nees = []
+    nees, nees_plain = [], []
     for ss in seeds:
         s_att, s_obs, s_reg = child_seeds(ss, 3)
         qs = [quat_normalize(np.random.default_rng(s_att).normal(size=4))]  # as error_map.random_attitudes
@@ -150,8 +160,15 @@ def check_cell(cell: CheckCell) -> dict:
         n_all = sum(f.obs.n_tracks for f in frames)
         out["false_track_fraction"].append(sum(int(np.sum(f.obs.feature_id < 0)) for f in frames) / max(n_all, 1))
         for k, f in enumerate(frames):
-            nees.append(nees_of_frame(f, qs[k]))
+            plain = nees_of_frame(f, qs[k])
+            nees_plain.append(plain)
+            if kind == "rendered" and f.tri.X_W.size:
+                nees.append(track_nees(f.obs, f.tri.X_W, f.tri.valid, f.tri.views_used, qs[k], observer.target).nees)
+            else:
+                nees.append(plain)
         crlb = np.array([_crlb_rad(frames[k - 1], frames[k], qs[k - 1], dR) for k in range(1, steps + 1)])
+        crlb_inc = crlb if cal is None else np.array([_crlb_rad(frames[k - 1], frames[k], qs[k - 1], dR, cal)
+                                                       for k in range(1, steps + 1)])
         out["pairs_per_step"].append(float(np.median([len(same_surface_points(frames[k - 1].obs, frames[k].obs)[0])
                                                       for k in range(1, steps + 1)])))
         reg_rng = np.random.default_rng(s_reg)
@@ -168,12 +185,20 @@ def check_cell(cell: CheckCell) -> dict:
                                                if ok.any() else float("nan"))
         ok = np.isfinite(crlb)
         out["crlb_deg"].append(float(np.degrees(np.sqrt(np.mean(crlb[ok] ** 2)))) if ok.any() else float("nan"))
-        both = ok & np.isfinite(errs["ml"])
-        out["ml_over_crlb"].append(float(np.sqrt(np.mean(errs["ml"][both] ** 2) / np.mean(crlb[both] ** 2)))
-                                   if both.any() else float("nan"))
+        for key, bound in (("", crlb), ("_increment", crlb_inc)):
+            ok = np.isfinite(bound)
+            both = ok & np.isfinite(errs["ml"])
+            if key:
+                out["crlb_increment_deg"].append(float(np.degrees(np.sqrt(np.mean(bound[ok] ** 2))))
+                                                 if ok.any() else float("nan"))
+            out[f"ml_over_crlb{key}"].append(float(np.sqrt(np.mean(errs["ml"][both] ** 2) / np.mean(bound[both] ** 2)))
+                                             if both.any() else float("nan"))
     nees = np.concatenate(nees) if nees else np.zeros(0)
+    plain = np.concatenate(nees_plain) if nees_plain else np.zeros(0)
     return {"per_trial": out, "nees_mean": float(np.mean(nees)) if nees.size else float("nan"),
-            "nees_median": float(np.median(nees)) if nees.size else float("nan"), "nees_points": int(nees.size)}
+            "nees_median": float(np.median(nees)) if nees.size else float("nan"), "nees_points": int(nees.size),
+            "nees_plain_mean": float(np.mean(plain)) if plain.size else float("nan"),
+            "nees_plain_median": float(np.median(plain)) if plain.size else float("nan")}
 
 
 def _summary(res: dict) -> dict:
@@ -181,9 +206,11 @@ def _summary(res: dict) -> dict:
     med = {k: float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan")
            for k, v in ((k, np.asarray(v, dtype=float)) for k, v in p.items())}
     # pooled ML error over pooled bound: RMS over the trials of the per-trial ratios' squares
-    r = np.asarray(p["ml_over_crlb"], dtype=float)
-    med["ml_over_crlb_pooled"] = float(np.sqrt(np.nanmean(r**2))) if np.isfinite(r).any() else float("nan")
-    return {**med, "nees_mean": res["nees_mean"], "nees_median": res["nees_median"], "nees_points": res["nees_points"]}
+    for key in ("", "_increment"):
+        r = np.asarray(p[f"ml_over_crlb{key}"], dtype=float)
+        med[f"ml_over_crlb{key}_pooled"] = float(np.sqrt(np.nanmean(r**2))) if np.isfinite(r).any() else float("nan")
+    return {**med, **{k: res[k] for k in ("nees_mean", "nees_median", "nees_points", "nees_plain_mean",
+                                          "nees_plain_median")}}
 
 
 def markdown_table(rendered: dict, fixed: dict, calibrated: dict) -> str:

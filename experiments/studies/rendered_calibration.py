@@ -84,6 +84,9 @@ class CalibrationSpec:
         Largest angle between the directions to the Sun and to the reference camera.
     ratio, epipolar_tol_px, truth_tol_px : float
         Ratio test, epipolar gate and the truth tolerance of a correct match.
+    nees_attitudes, nees_angles_deg : int, tuple of float
+        The σ² inflation step (:mod:`experiments.studies.nees_calibration`): its attitudes (the first
+        ones of each range; 0 skips it) and the angles between its three cameras, degrees.
     """
 
     targets: tuple[str, ...] = ("fy1", "topex")
@@ -98,6 +101,8 @@ class CalibrationSpec:
     ratio: float = 0.6
     epipolar_tol_px: float = 1.5
     truth_tol_px: float = 2.0
+    nees_attitudes: int = 24
+    nees_angles_deg: tuple[float, ...] = (10.0, 20.0)
 
     def __post_init__(self) -> None:
         if not self.targets:
@@ -115,7 +120,8 @@ class CalibrationSpec:
 #: the size ``coobs calibrate`` runs by default (≈ 8 min on one core of the shared 2-core machine)
 DEFAULT = CalibrationSpec()
 #: ``coobs calibrate --quick``: one attitude per target and range, two epoch changes (a test)
-QUICK = CalibrationSpec(attitudes=1, cross_view_deg=(10.0,), epoch_change_deg=(2.0, 20.0))
+QUICK = CalibrationSpec(attitudes=1, cross_view_deg=(10.0,), epoch_change_deg=(2.0, 20.0), nees_attitudes=1,
+                        nees_angles_deg=(10.0,))
 
 
 def load_calibration_target(name: str) -> Target:
@@ -398,9 +404,9 @@ def calibrate(spec: CalibrationSpec = DEFAULT, *, command: str = "",
             per_range.append(t)
         out_targets[name] = _target_summary(spec, target, per_range, f_px)
         del ti
-    return {
+    data = {
         "format": "coobs rendered SIFT calibration",
-        "format_version": 1,
+        "format_version": 2,
         "size_edges_px": list(SIZE_EDGES_PX[:-1]) + ["inf"],
         "cos_view_edges": list(COS_VIEW_EDGES),
         "sun_bin_edges": list(SUN_BIN_EDGES),
@@ -422,6 +428,15 @@ def calibrate(spec: CalibrationSpec = DEFAULT, *, command: str = "",
         },
         "targets": out_targets,
     }
+    if int(spec.nees_attitudes) > 0:
+        from experiments.studies.nees_calibration import NeesSpec, add_triangulation_nees
+
+        nees = NeesSpec(attitudes=int(spec.nees_attitudes), angles_deg=tuple(spec.nees_angles_deg),
+                        sun_phase_max_deg=spec.sun_phase_max_deg, ratio=spec.ratio,
+                        epipolar_tol_px=spec.epipolar_tol_px, truth_tol_px=spec.truth_tol_px)
+        data = add_triangulation_nees(data, nees, command=command)
+        data["provenance"]["wall_s"] = round(time.perf_counter() - t0, 1)
+    return data
 
 
 def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_Tally], f_px: float) -> dict:

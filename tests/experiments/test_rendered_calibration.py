@@ -37,6 +37,10 @@ def test_quick_calibration_writes_a_readable_file_with_its_command(tmp_path):
     assert 0.05 < t["pair_residual_rms_px_per_axis"] < 1.0
     cal = SiftCalibration.from_dict(data, "fy1")
     assert np.all(cal.sigma_px > 0) and 0 < cal.pair_survival[0, 0] <= 1
+    # the triangulation σ² inflation step ran (one attitude, 10°) and says how it was made
+    assert data["provenance"]["triangulation_nees"]["spec"]["attitudes"] == 1
+    assert sum(map(sum, t["triangulation_nees"]["points"][0])) > 0
+    assert cal.sigma2_inflation.shape == (1, 1, 3) and np.all(np.isfinite(cal.sigma2_inflation))
 
 
 def test_calibrate_refuses_an_unknown_target_in_one_line():

@@ -13,16 +13,20 @@ from vision.calibration.model import (
     COS_VIEW_EDGES,
     SIZE_EDGES_PX,
     SUN_BIN_EDGES,
+    TRACK_CLASSES,
     SiftCalibration,
     calibration_path,
     load_calibration,
+    track_class,
 )
 
 __all__ = [
     "COS_VIEW_EDGES",
     "SIZE_EDGES_PX",
     "SUN_BIN_EDGES",
+    "TRACK_CLASSES",
     "SiftCalibration",
     "calibration_path",
     "load_calibration",
+    "track_class",
 ]

@@ -5,20 +5,25 @@ that a camera with another focal length or range uses the same numbers at the sa
 Between calibrated footprints values are interpolated linearly in log footprint; beyond them the
 detection density follows the power law of the two nearest footprints and the rates and sizes are
 held at the nearest calibrated value (``docs/vision.md`` says where that matters).
+
+The σ of a keypoint in a triangulated track (:meth:`SiftCalibration.track_sigma_px`) is its size σ
+times the square root of the measured σ² inflation of its track's class (:data:`TRACK_CLASSES`),
+its cameras' spread and image scale, where the file has that table (``triangulation_nees``, from
+:mod:`experiments.studies.nees_calibration`); files without it give inflation 1.
 """
 
 from __future__ import annotations
 
 import functools
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["COS_VIEW_EDGES", "SIZE_EDGES_PX", "SUN_BIN_EDGES", "SiftCalibration", "calibration_path",
-           "load_calibration"]
+__all__ = ["COS_VIEW_EDGES", "SIZE_EDGES_PX", "SUN_BIN_EDGES", "TRACK_CLASSES", "SiftCalibration",
+           "calibration_path", "load_calibration", "track_class"]
 
 #: SIFT keypoint diameter bins, px (half octaves from 2√2 px)
 SIZE_EDGES_PX = np.array([0.0, 2.83, 4.0, 5.66, 8.0, 11.3, 16.0, 22.6, 32.0, np.inf])
@@ -26,6 +31,9 @@ SIZE_EDGES_PX = np.array([0.0, 2.83, 4.0, 5.66, 8.0, 11.3, 16.0, 22.6, 32.0, np.
 COS_VIEW_EDGES = np.array([0.0, 0.26, 0.5, 0.71, 0.87, 1.0001])
 #: Sun bins: bin 0 = not lit; bins 1.. = cosine of the Sun incidence on the lit side
 SUN_BIN_EDGES = np.array([-1.0, 0.0, 0.26, 0.5, 0.71, 0.87, 1.0001])
+#: track classes of the σ inflation: a two-camera formation's tracks; a three-camera formation's tracks
+#: matched in all three cameras, or in two of them
+TRACK_CLASSES = ("2 of 2", "3 of 3", "2 of 3")
 #: visible area below which a (view, Sun) density cell is taken from the factorised marginals, m²
 _MIN_CELL_AREA_M2 = 2.0
 #: floor of a bin's σ (a bin whose least-squares σ² came out 0), px
@@ -82,6 +90,36 @@ def _material_factor(t: dict) -> np.ndarray:
     return f * area.sum(axis=1, keepdims=True) / np.sum(f * area, axis=1, keepdims=True)
 
 
+def track_class(n_track_views: ArrayLike, n_cameras: int) -> np.ndarray:
+    """Index into :data:`TRACK_CLASSES` of tracks seen in ``n_track_views`` of ``n_cameras`` cameras
+    (formations of more than three cameras use the three-camera classes)."""
+    k = np.asarray(n_track_views)
+    if int(n_cameras) <= 2:
+        return np.zeros(k.shape, dtype=int)
+    return np.where(k >= min(int(n_cameras), 3), 1, 2)
+
+
+def _inflation(t: dict) -> dict:
+    """The σ² inflation table of a target (absent in files before it: inflation 1)."""
+    nees = t.get("triangulation_nees")
+    if nees is None:
+        ones = np.ones((len(t["ranges_m"]), 1, len(TRACK_CLASSES)))
+        return {"nees_angle_deg": np.array([10.0]), "sigma2_inflation": ones, "increment_sigma2_inflation": ones}
+
+    def table(key: str) -> np.ndarray:
+        rows = []
+        for per_range in nees[key]:
+            tab = np.array([[np.nan if v is None else float(v) for v in per_angle] for per_angle in per_range])
+            for c in range(tab.shape[1]):  # an angle without data takes the nearest angle's value
+                tab[:, c] = _fill_nearest(list(tab[:, c])) if np.isfinite(tab[:, c]).any() else np.nan
+            # a class without data: the mean of the other classes at that angle
+            rows.append(np.where(np.isfinite(tab), tab, np.nanmean(tab, axis=1, keepdims=True)))
+        return np.stack(rows)
+
+    return {"nees_angle_deg": np.asarray(nees["angle_deg"], dtype=float), "sigma2_inflation": table("sigma2_inflation"),
+            "increment_sigma2_inflation": table("increment_sigma2_inflation")}
+
+
 @dataclass(frozen=True, eq=False)
 class SiftCalibration:
     """Measured SIFT statistics of one target (see :mod:`vision.calibration`).
@@ -119,6 +157,14 @@ class SiftCalibration:
         Density cells with enough surface seen to be measured (the others are the product of the
         view and Sun marginals).
     provenance : dict
+    nees_angle_deg : ndarray (A,)
+        Angles between the cameras at which the σ² inflation was measured, degrees.
+    sigma2_inflation : ndarray (R, A, len(TRACK_CLASSES))
+        σ² inflation per footprint, camera angle and track class that makes the triangulation NEES 3
+        (ones where the file has none).
+    increment_sigma2_inflation : ndarray (R, A, len(TRACK_CLASSES))
+        The same for the change of a feature's triangulated body point between two epochs 1° apart
+        (smaller: much of a keypoint's error is the same at both epochs and cancels in an increment).
     """
 
     target: str
@@ -139,6 +185,9 @@ class SiftCalibration:
     measured_cell: np.ndarray
     material_factor: np.ndarray
     provenance: dict
+    nees_angle_deg: np.ndarray = field(default_factory=lambda: np.array([10.0]))
+    sigma2_inflation: np.ndarray | None = None
+    increment_sigma2_inflation: np.ndarray | None = None
 
     @classmethod
     def from_dict(cls, data: dict, target: str) -> SiftCalibration:
@@ -178,6 +227,7 @@ class SiftCalibration:
             three_over_two_ratio=(float(sum(t["cross_view"]["three_view_tracks"]))
                                   / max(1.0, float(sum(t["cross_view"]["two_view_tracks"])))),
             provenance=dict(data.get("provenance", {})),
+            **_inflation(t),
         )
 
     # -- interpolation helpers -------------------------------------------------------------------
@@ -220,6 +270,51 @@ class SiftCalibration:
         w = np.clip(w, 0.0, 1.0)
         sig = (1.0 - w) * self.sigma_px_by_range[i, b] + w * self.sigma_px_by_range[j, b]
         return np.where(np.isfinite(s), sig, np.nan)
+
+    def sigma_inflation(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike, track_class: ArrayLike, *,
+                        increment: bool = False) -> np.ndarray:
+        """σ² inflation of keypoints at this footprint, in tracks whose cameras are ``angle_deg`` apart
+        (largest angle between two of them, about the target) of class ``track_class`` (index into
+        :data:`TRACK_CLASSES`): linear in angle and log footprint, held beyond the calibrated ones.
+        ``increment``: the inflation of an inter-epoch increment instead of a triangulated point."""
+        fp, ang, c = np.broadcast_arrays(np.asarray(footprint_m_per_px, dtype=float),
+                                         np.asarray(angle_deg, dtype=float), np.asarray(track_class, dtype=int))
+        tab = self.increment_sigma2_inflation if increment else self.sigma2_inflation
+        grid = self.nees_angle_deg
+        i, j, w = self._range_weights(fp)
+        w = np.clip(w, 0.0, 1.0)
+        if grid.size == 1:
+            return (1.0 - w) * tab[i, 0, c] + w * tab[j, 0, c]
+        k = np.clip(np.searchsorted(grid, ang) - 1, 0, grid.size - 2)
+        u = np.clip((ang - grid[k]) / (grid[k + 1] - grid[k]), 0.0, 1.0)
+
+        def at(r):
+            return (1.0 - u) * tab[r, k, c] + u * tab[r, k + 1, c]
+
+        return (1.0 - w) * at(i) + w * at(j)
+
+    def track_sigma_px(self, obs, *, inflate: bool = True, increment: bool = False) -> np.ndarray:
+        """``(M, n)`` σ per track and view of an observation (NaN where a track is absent): the size σ
+        of each keypoint at its view's image scale, times √(σ² inflation) of the track
+        (:meth:`sigma_inflation`; its class from the views it has and the cameras, its angle the
+        largest between two of its cameras about the origin of H, where the target is).  ``increment``:
+        the σ of the same keypoints for an inter-epoch increment (its Cramér–Rao bound), ``inflate=False``:
+        the size σ alone."""
+        fp = np.linalg.norm(obs.T_CW[:, :3, 3], axis=1) / np.sqrt(obs.K[:, 0, 0] * obs.K[:, 1, 1])
+        sig = self.sigma_for_size(obs.keypoint_size_px, fp[None, :])
+        if not inflate:
+            return sig
+        R = obs.T_CW[:, :3, :3]
+        c = -np.einsum("nji,nj->ni", R, obs.T_CW[:, :3, 3])          # camera centres in H
+        c /= np.linalg.norm(c, axis=1, keepdims=True)
+        pair = np.degrees(np.arccos(np.clip(c @ c.T, -1.0, 1.0)))   # (n, n)
+        seen = obs.seen
+        both = seen[:, :, None] & seen[:, None, :]
+        angle = np.max(np.where(both, pair[None], 0.0), axis=(1, 2))
+        cls = track_class(seen.sum(axis=1), obs.n_views)
+        infl = self.sigma_inflation(np.broadcast_to(fp[None, :], sig.shape), angle[:, None], cls[:, None],
+                                    increment=increment)
+        return sig * np.sqrt(infl)
 
     def density(self, footprint_m_per_px: ArrayLike, cos_view: ArrayLike, sun_bin: ArrayLike,
                 material: ArrayLike | None = None) -> np.ndarray:

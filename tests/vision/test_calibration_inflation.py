@@ -1,0 +1,89 @@
+"""The measured σ² inflation of triangulated tracks and of increments (vision.calibration, issue 16)."""
+
+import copy
+import json
+
+import numpy as np
+import pytest
+
+from formation.geometry import symmetric_views
+from vision.calibration import (
+    TRACK_CLASSES,
+    SiftCalibration,
+    calibration_path,
+    load_calibration,
+    track_class,
+)
+from vision.camera import PinholeCamera
+from vision.observation import Observation
+
+
+@pytest.fixture(scope="module")
+def data():
+    return json.loads(calibration_path().read_text(encoding="utf-8"))
+
+
+def _with_table(data: dict) -> dict:
+    d = copy.deepcopy(data)
+    t = d["targets"]["fy1"]
+    t["triangulation_nees"] = {
+        "angle_deg": [10.0, 20.0], "classes": list(TRACK_CLASSES),
+        # (range, angle, class); one class missing at 80 m takes the others' mean there
+        "sigma2_inflation": [[[1.2, 1.0, 1.8], [1.6, 1.4, 2.2]], [[0.6, 0.7, None], [0.8, 0.9, None]]],
+        "increment_sigma2_inflation": [[[1.0, 0.9, 1.5], [1.0, 0.9, 1.5]], [[0.5, 0.5, 0.5], [0.5, 0.5, 0.5]]],
+    }
+    return d
+
+
+def _observation(n_cameras: int, seen: np.ndarray, distance_m: float = 40.0, angle_deg: float = 10.0) -> Observation:
+    cam = PinholeCamera.from_fov(1024, 1024, fov_x_deg=20.0)
+    T = symmetric_views(n_cameras, distance_m, angle_deg).T_CW
+    M = len(seen)
+    uv = np.where(seen[..., None], np.full((M, n_cameras, 2), 500.0), np.nan)
+    return Observation(uv_px=uv, descriptors=np.ones((M, 4), np.float32) / 2, K=np.broadcast_to(cam.K, (n_cameras, 3, 3)).copy(),
+                       T_CW=T, image_size=(1024, 1024), pixel_sigma_px=0.2, feature_id=np.arange(M),
+                       X_T_true=np.zeros((M, 3)), keypoint_size_px=np.where(seen, 2.0, np.nan))
+
+
+def test_a_file_without_the_table_gives_no_inflation(data):
+    d = copy.deepcopy(data)
+    for t in d["targets"].values():
+        t.pop("triangulation_nees", None)
+    cal = SiftCalibration.from_dict(d, "fy1")
+    obs = _observation(3, np.array([[True, True, True], [True, False, True]]))
+    np.testing.assert_array_equal(cal.track_sigma_px(obs), cal.track_sigma_px(obs, inflate=False))
+    np.testing.assert_array_equal(cal.track_sigma_px(obs, increment=True), cal.track_sigma_px(obs, inflate=False))
+
+
+def test_track_class_and_angle_pick_the_inflation(data):
+    cal = SiftCalibration.from_dict(_with_table(data), "fy1")
+    assert track_class(np.array([2, 3, 2]), 3).tolist() == [2, 1, 2]
+    assert track_class(np.array([2]), 2).tolist() == [0]
+    assert track_class(np.array([4, 3, 2]), 5).tolist() == [1, 1, 2]   # more cameras: the 3-camera classes
+    obs3 = _observation(3, np.array([[True, True, True], [True, False, True]]), angle_deg=10.0)
+    base = cal.track_sigma_px(obs3, inflate=False)
+    ratio2 = (cal.track_sigma_px(obs3) / base) ** 2
+    np.testing.assert_allclose(ratio2[0], 1.0, rtol=1e-9)              # "3 of 3" at 10°, 40 m
+    np.testing.assert_allclose(ratio2[1, [0, 2]], 1.8, rtol=1e-9)      # "2 of 3"
+    np.testing.assert_allclose((cal.track_sigma_px(obs3, increment=True) / base)[1, [0, 2]] ** 2, 1.5, rtol=1e-9)
+    obs2 = _observation(2, np.array([[True, True]]), angle_deg=15.0)   # halfway between 10° and 20°
+    np.testing.assert_allclose((cal.track_sigma_px(obs2) / cal.track_sigma_px(obs2, inflate=False)) ** 2, 1.4,
+                               rtol=1e-6)
+    # 80 m: "2 of 3" was not measured and takes the mean of the other classes at that angle
+    np.testing.assert_allclose(cal.sigma_inflation(cal.footprint_m_per_px[1], 10.0, 2), 0.65, rtol=1e-9)
+    # beyond the calibrated footprints and angles the nearest value is held
+    np.testing.assert_allclose(cal.sigma_inflation(10 * cal.footprint_m_per_px[1], 40.0, 0), 0.8, rtol=1e-9)
+
+
+def test_the_shipped_file_has_the_inflation_with_its_provenance(data):
+    p = data["provenance"]["triangulation_nees"]
+    assert p["command"].startswith("coobs calibrate")
+    assert p["spec"]["attitudes"] >= 12 and p["spec"]["angles_deg"] == [10.0, 20.0]
+    for name in ("fy1", "topex"):
+        t = data["targets"][name]["triangulation_nees"]
+        assert np.sum(t["points"]) > 2000 and np.sum(t["increment_pairs"]) > 1000
+        cal = load_calibration(name)
+        assert cal.sigma2_inflation.shape == (2, 2, 3)
+        assert np.all((cal.sigma2_inflation > 0.2) & (cal.sigma2_inflation < 5.0))
+        # much of a keypoint's error is the same at two epochs 1° apart: an increment sees less of it
+        assert np.mean(cal.increment_sigma2_inflation) < np.mean(cal.sigma2_inflation)
