@@ -18,6 +18,7 @@ plain statistic beside it).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 from collections.abc import Sequence
@@ -39,6 +40,7 @@ from experiments.studies.triangulation_consistency import track_nees
 from experiments.sweep import cell_seed_sequences, child_seeds
 from formation.geometry import symmetric_views
 from reconstruction.accuracy import attitude_increment_crlb
+from reconstruction.triangulation import triangulate_from_observation
 from vision.calibration import load_calibration
 from vision.camera import PinholeCamera
 from vision.target import Target, fy1_target, load_mesh
@@ -103,17 +105,17 @@ def same_surface_points(prev, curr, *, tol_px: float = 1.0) -> tuple[np.ndarray,
     return ia[order[first]], ib[j[order[first]]]
 
 
-def _crlb_rad(prev: Frame, curr: Frame, q_HT: np.ndarray, dR: np.ndarray, cal=None) -> float:
+def _crlb_rad(prev: Frame, curr: Frame, q_HT: np.ndarray, dR: np.ndarray, sigma_of=None) -> float:
     """Bound of one increment: the points tracked at both epochs, each epoch's views and σ per track and view
-    (the observation's; with a calibration ``cal``, its σ for increments, ``track_sigma_px(increment=True)``)."""
+    (the observation's; ``sigma_of(obs)`` gives another σ per track and view)."""
     ip, ic = same_surface_points(prev.obs, curr.obs)
     if ip.size < 3:
         return float("nan")
     X_W = prev.obs.X_T_true[ip] @ matrix_from_quat(q_HT).T
     s_prev, s_curr = prev.obs.sigma_uv_px, curr.obs.sigma_uv_px
-    if cal is not None:
-        s_prev = np.where(prev.obs.seen, cal.track_sigma_px(prev.obs, increment=True), s_prev)
-        s_curr = np.where(curr.obs.seen, cal.track_sigma_px(curr.obs, increment=True), s_curr)
+    if sigma_of is not None:
+        s_prev = np.where(prev.obs.seen, sigma_of(prev.obs), s_prev)
+        s_curr = np.where(curr.obs.seen, sigma_of(curr.obs), s_curr)
     b = attitude_increment_crlb(X_W, prev.obs.K, prev.obs.T_CW, pixel_sigma_px=s_prev[ip],
                                 pixel_sigma_px_next=s_curr[ic], visible=prev.obs.seen[ip],
                                 visible_next=curr.obs.seen[ic], R_delta=dR)
@@ -139,10 +141,14 @@ def check_cell(cell: CheckCell) -> dict:
     sun = sun / np.linalg.norm(sun)
     seeds = cell_seed_sequences(cell.seed, {}, cell.trials)
     cal = load_calibration(observer.target.name) if (kind, noise) == ("rendered", "calibrated") else None
-    out = {k: [] for k in ("tracks", "ml_step_rms_deg", "ransac_step_rms_deg", "crlb_deg",
-                           "ml_over_crlb", "crlb_increment_deg", "ml_over_crlb_increment", "false_track_fraction", "ml_failed_steps", "ransac_failed_steps",
-                           "pairs_per_step")}
-    nees, nees_plain = [], []
+    # the rendered calibrated mode also gives the bound with the increment σ and, as before issue 16's
+    # σ inflation, the bound and the NEES with the size σ alone
+    sigmas = {} if cal is None else {"_increment": lambda o: cal.track_sigma_px(o, increment=True),
+                                     "_size": lambda o: cal.track_sigma_px(o, inflate=False)}
+    out = {k: [] for k in ("tracks", "ml_step_rms_deg", "ransac_step_rms_deg", "crlb_deg", "ml_over_crlb",
+                           *(f"{p}{key}" for key in sigmas for p in ("crlb_deg", "ml_over_crlb")),
+                           "false_track_fraction", "ml_failed_steps", "ransac_failed_steps", "pairs_per_step")}
+    nees = {k: [] for k in ("nees", "nees_plain", "nees_size", "nees_size_plain")}
     for ss in seeds:
         s_att, s_obs, s_reg = child_seeds(ss, 3)
         qs = [quat_normalize(np.random.default_rng(s_att).normal(size=4))]  # as error_map.random_attitudes
@@ -161,14 +167,21 @@ def check_cell(cell: CheckCell) -> dict:
         out["false_track_fraction"].append(sum(int(np.sum(f.obs.feature_id < 0)) for f in frames) / max(n_all, 1))
         for k, f in enumerate(frames):
             plain = nees_of_frame(f, qs[k])
-            nees_plain.append(plain)
+            nees["nees_plain"].append(plain)
             if kind == "rendered" and f.tri.X_W.size:
-                nees.append(track_nees(f.obs, f.tri.X_W, f.tri.valid, f.tri.views_used, qs[k], observer.target).nees)
+                nees["nees"].append(track_nees(f.obs, f.tri.X_W, f.tri.valid, f.tri.views_used, qs[k],
+                                               observer.target).nees)
             else:
-                nees.append(plain)
-        crlb = np.array([_crlb_rad(frames[k - 1], frames[k], qs[k - 1], dR) for k in range(1, steps + 1)])
-        crlb_inc = crlb if cal is None else np.array([_crlb_rad(frames[k - 1], frames[k], qs[k - 1], dR, cal)
-                                                       for k in range(1, steps + 1)])
+                nees["nees"].append(plain)
+            if "_size" in sigmas and f.obs.ok and f.obs.n_tracks:
+                o = dataclasses.replace(f.obs, track_sigma_px=sigmas["_size"](f.obs))
+                fs = Frame(obs=o, tri=triangulate_from_observation(o))
+                nees["nees_size_plain"].append(nees_of_frame(fs, qs[k]))
+                nees["nees_size"].append(track_nees(o, fs.tri.X_W, fs.tri.valid, fs.tri.views_used, qs[k],
+                                                    observer.target).nees)
+        bounds = {"": np.array([_crlb_rad(frames[k - 1], frames[k], qs[k - 1], dR) for k in range(1, steps + 1)])}
+        for key, fn in sigmas.items():
+            bounds[key] = np.array([_crlb_rad(frames[k - 1], frames[k], qs[k - 1], dR, fn) for k in range(1, steps + 1)])
         out["pairs_per_step"].append(float(np.median([len(same_surface_points(frames[k - 1].obs, frames[k].obs)[0])
                                                       for k in range(1, steps + 1)])))
         reg_rng = np.random.default_rng(s_reg)
@@ -183,22 +196,19 @@ def check_cell(cell: CheckCell) -> dict:
             out[f"{name}_failed_steps"].append(float(steps - ok.sum()))
             out[f"{name}_step_rms_deg"].append(float(np.degrees(np.sqrt(np.mean(errs[name][ok] ** 2))))
                                                if ok.any() else float("nan"))
-        ok = np.isfinite(crlb)
-        out["crlb_deg"].append(float(np.degrees(np.sqrt(np.mean(crlb[ok] ** 2)))) if ok.any() else float("nan"))
-        for key, bound in (("", crlb), ("_increment", crlb_inc)):
+        for key, bound in bounds.items():
             ok = np.isfinite(bound)
             both = ok & np.isfinite(errs["ml"])
-            if key:
-                out["crlb_increment_deg"].append(float(np.degrees(np.sqrt(np.mean(bound[ok] ** 2))))
-                                                 if ok.any() else float("nan"))
+            out[f"crlb_deg{key}"].append(float(np.degrees(np.sqrt(np.mean(bound[ok] ** 2)))) if ok.any() else float("nan"))
             out[f"ml_over_crlb{key}"].append(float(np.sqrt(np.mean(errs["ml"][both] ** 2) / np.mean(bound[both] ** 2)))
                                              if both.any() else float("nan"))
-    nees = np.concatenate(nees) if nees else np.zeros(0)
-    plain = np.concatenate(nees_plain) if nees_plain else np.zeros(0)
-    return {"per_trial": out, "nees_mean": float(np.mean(nees)) if nees.size else float("nan"),
-            "nees_median": float(np.median(nees)) if nees.size else float("nan"), "nees_points": int(nees.size),
-            "nees_plain_mean": float(np.mean(plain)) if plain.size else float("nan"),
-            "nees_plain_median": float(np.median(plain)) if plain.size else float("nan")}
+    res = {"per_trial": out}
+    for key, parts in nees.items():
+        v = np.concatenate(parts) if parts else np.zeros(0)
+        res[f"{key}_mean"] = float(np.mean(v)) if v.size else float("nan")
+        res[f"{key}_median"] = float(np.median(v)) if v.size else float("nan")
+        res[f"{key}_points"] = int(v.size)
+    return res
 
 
 def _summary(res: dict) -> dict:
@@ -206,11 +216,12 @@ def _summary(res: dict) -> dict:
     med = {k: float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan")
            for k, v in ((k, np.asarray(v, dtype=float)) for k, v in p.items())}
     # pooled ML error over pooled bound: RMS over the trials of the per-trial ratios' squares
-    for key in ("", "_increment"):
+    for key in ("", "_increment", "_size"):
+        if f"ml_over_crlb{key}" not in p:
+            continue
         r = np.asarray(p[f"ml_over_crlb{key}"], dtype=float)
         med[f"ml_over_crlb{key}_pooled"] = float(np.sqrt(np.nanmean(r**2))) if np.isfinite(r).any() else float("nan")
-    return {**med, **{k: res[k] for k in ("nees_mean", "nees_median", "nees_points", "nees_plain_mean",
-                                          "nees_plain_median")}}
+    return {**med, **{k: v for k, v in res.items() if k.startswith("nees")}}
 
 
 def markdown_table(rendered: dict, fixed: dict, calibrated: dict) -> str:

@@ -1,4 +1,4 @@
-"""The rendered mode's σ per keypoint from its SIFT size (noise_model="calibrated")."""
+"""The rendered mode's σ per keypoint from its SIFT size and its track (noise_model="calibrated")."""
 
 import numpy as np
 import pytest
@@ -20,7 +20,12 @@ def test_calibrated_rendered_tracks_carry_the_sigma_of_their_keypoint_sizes(came
     s = cal.seen
     assert np.all(cal.keypoint_size_px[s] > 1.0) and np.all(np.isnan(cal.keypoint_size_px[~s]))
     fp = np.linalg.norm(T[:, :3, 3], axis=1) / camera.K[0, 0]                 # image scale of each view, m/px
-    expected = load_calibration("fy1").sigma_for_size(cal.keypoint_size_px, fp[None, :])
+    c = -np.einsum("nji,nj->ni", T[:, :3, :3], T[:, :3, 3])                   # camera centres
+    angle = np.degrees(np.arccos(c[0] @ c[1] / np.prod(np.linalg.norm(c, axis=1))))
+    calib = load_calibration("fy1")
+    # the size σ at the view's image scale, inflated as measured for a two-camera track at this spread
+    expected = (calib.sigma_for_size(cal.keypoint_size_px, fp[None, :])
+                * np.sqrt(calib.sigma_inflation(fp[None, :], angle, 0)))
     np.testing.assert_allclose(cal.track_sigma_px[s], expected[s], rtol=1e-12)
     np.testing.assert_allclose(cal.pixel_sigma_px, np.sqrt(np.mean(cal.track_sigma_px[s] ** 2)))
     # the measured σ (0.1-0.6 px) replaces the configured 0.5 px; most tracks are small keypoints
