@@ -24,9 +24,9 @@ from reconstruction.registration import fit_rigid_ml, register_fpfh_ransac, regi
 __all__ = ["register_by_geometry"]
 
 
-def _valid(frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+def _valid(frame: Frame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     v = np.asarray(frame.tri.valid, bool) & np.all(np.isfinite(frame.tri.X_W), -1)
-    return frame.tri.X_W[v], frame.tri.cov_W[v]
+    return frame.tri.X_W[v], frame.tri.cov_W[v], np.flatnonzero(v)
 
 
 def _pairs(P: np.ndarray, Q: np.ndarray, CP: np.ndarray, CQ: np.ndarray, R: np.ndarray, t: np.ndarray):
@@ -68,8 +68,8 @@ def register_by_geometry(kf: Frame, frame: Frame, dR_H_pred: np.ndarray, *, rng:
     """
     if not (kf.ok and frame.ok):
         return RegistrationIncrement.failed("geometry: a frame is not observed")
-    P, CP = _valid(kf)
-    Q, CQ = _valid(frame)
+    P, CP, track_P = _valid(kf)
+    Q, CQ, track_Q = _valid(frame)
     if len(P) < evidence.min_inliers or len(Q) < evidence.min_inliers:
         return RegistrationIncrement.failed(f"geometry: fewer than {evidence.min_inliers} points")
     starts = []
@@ -94,8 +94,10 @@ def register_by_geometry(kf: Frame, frame: Frame, dR_H_pred: np.ndarray, *, rng:
         if bad:
             why = f"geometry: {bad}"
             continue
+        inl = np.asarray(reg.inliers, dtype=bool)
         inc = RegistrationIncrement(R_H=reg.R, cov_rotvec_H=reg.cov[:3, :3], n_matches=int(ip.size),
-                                    n_inliers=int(reg.n_inliers), ok=True, failure_reason="")
+                                    n_inliers=int(reg.n_inliers), ok=True, failure_reason="",
+                                    inliers_prev=track_P[ip[inl]], inliers_curr=track_Q[iq[inl]])
         if best is None or inc.n_inliers > best.n_inliers:
             best = inc
     return best if best is not None else RegistrationIncrement.failed(why)

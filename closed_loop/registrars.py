@@ -10,7 +10,7 @@ names the configs use (``estimator.registration``).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -74,6 +74,8 @@ class RegistrationIncrement:
     ok : bool
     failure_reason : str
         ``""`` when ok.
+    inliers_prev, inliers_curr : ndarray (n_inliers,) of int
+        The tracks of the earlier and of the later frame that the final fit used (empty when not ok).
     """
 
     R_H: np.ndarray
@@ -82,6 +84,8 @@ class RegistrationIncrement:
     n_inliers: int
     ok: bool
     failure_reason: str
+    inliers_prev: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    inliers_curr: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
 
     @classmethod
     def failed(cls, failure_reason: str, n_matches: int = 0) -> RegistrationIncrement:
@@ -199,8 +203,9 @@ class Registrar(ABC):
         cov = reg.cov[:3, :3]
         if with_covariance and not np.all(np.isfinite(cov)):
             cov = residual_rotation_covariance(pairs.P_H, pairs.Q_H, reg)
+        inl = np.asarray(reg.inliers, dtype=bool)
         return RegistrationIncrement(R_H=reg.R, cov_rotvec_H=cov, n_matches=k, n_inliers=int(reg.n_inliers),
-                                     ok=True, failure_reason="")
+                                     ok=True, failure_reason="", inliers_prev=ip[inl], inliers_curr=iq[inl])
 
 
 @dataclass(frozen=True)

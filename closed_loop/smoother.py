@@ -275,6 +275,10 @@ class AttitudeSmoother:
             c = self._marginal_cache[k] = self._isam.marginalCovariance(Y(k))
         return c
 
+    def has_frame(self, k: int) -> bool:
+        """Whether epoch ``k``'s cloud orientation ``B_k`` is in the graph."""
+        return k in self._frame_cov
+
     def add_frame(self, k: int, cov_frame_N: np.ndarray) -> None:
         """The cloud orientation ``B_k`` of epoch ``k``'s frame, with its covariance (left, N, rad²); once per epoch."""
         if k in self._frame_cov:
@@ -286,24 +290,30 @@ class AttitudeSmoother:
         self._graph.add(gtsam.BetweenFactorRot3(Y(k), B(k), gtsam.Rot3(), gtsam.noiseModel.Gaussian.Covariance(cov)))
         self._values.insert(B(k), _rot(R.T))
 
-    def add_relative(self, j: int, k: int, dR_N: np.ndarray, cov_N: np.ndarray, *, inflation: float = 1.0) -> None:
+    def add_relative(self, j: int, k: int, dR_N: np.ndarray, cov_N: np.ndarray, *, remainder_N: np.ndarray | None = None,
+                     inflation: float = 1.0) -> None:
         """A relative-rotation factor ``R_NT(k) R_NT(j)ᵀ = dR_N`` with left N-frame covariance ``cov_N`` (rad²).
 
         Where the frames were added (:meth:`add_frame`) the factor joins their cloud orientations
         with ``cov_N`` less the frames' shares ``Σ_k + ΔR Σ_j ΔRᵀ`` (kept positive definite: at
         least 10 % of ``cov_N`` in every direction); otherwise it joins the attitudes with
-        ``cov_N``.  ``inflation`` multiplies that remainder (a closure shares its keyframe's points
-        with the keyframe's other closures, a correlation the graph does not hold).  Call
-        :meth:`gate` first; this adds unconditionally (Huber-robust).
+        ``cov_N``.  ``remainder_N``, when given, is that remainder computed by the caller from the
+        point subsets the registration used (:func:`closed_loop.smoothing_loop` does; it is kept at
+        least 1 % of ``cov_N``).  ``inflation`` multiplies the remainder (a closure shares its
+        keyframe's points with the keyframe's other closures, a correlation the graph does not
+        hold).  Call :meth:`gate` first; this adds unconditionally (Huber-robust).
         """
         dR = np.asarray(dR_N, float)
         cov = 0.5 * (np.asarray(cov_N, float) + np.asarray(cov_N, float).T)
-        zero = np.zeros((3, 3))
-        shares = self._frame_cov.get(k, zero) + dR @ self._frame_cov.get(j, zero) @ dR.T
+        if remainder_N is None:
+            zero = np.zeros((3, 3))
+            remainder, floor = cov - self._frame_cov.get(k, zero) - dR @ self._frame_cov.get(j, zero) @ dR.T, 0.1
+        else:
+            remainder, floor = np.asarray(remainder_N, float), 0.01
         m, V = np.linalg.eigh(cov)
         iso = np.diag(1.0 / np.sqrt(m)) @ V.T  # whitening of cov
-        rm, rV = np.linalg.eigh(iso @ (cov - shares) @ iso.T)
-        resid = np.linalg.inv(iso) @ (rV * np.maximum(rm, 0.1)) @ rV.T @ np.linalg.inv(iso).T
+        rm, rV = np.linalg.eigh(iso @ (0.5 * (remainder + remainder.T)) @ iso.T)
+        resid = np.linalg.inv(iso) @ (rV * np.maximum(rm, floor)) @ rV.T @ np.linalg.inv(iso).T
         base = gtsam.noiseModel.Gaussian.Covariance(0.5 * float(inflation) * (resid + resid.T))
         noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(self.settings.huber_k), base)
         # B_jᵀ B_k = R_NT(j) R_NT(k)ᵀ = dR_Nᵀ; its right error is the (negated) left error of dR_N

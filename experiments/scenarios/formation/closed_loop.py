@@ -119,7 +119,7 @@ def closed_loop(cfg: Config, seed_seq: np.random.SeedSequence, *,
                               sigma_omega_rad_s=np.deg2rad(e.sigma_omega_deg_s), rng=np.random.default_rng(s_init),
                               t_s=t[0], attitude_known=e.initial_attitude_known)
     if isinstance(loop, SmoothingLoop):
-        state0 = SmootherStart.from_filter_state(make_estimator(cfg), state0)
+        state0 = SmootherStart.from_filter_state(make_estimator(cfg), state0, attitude_defined=e.initial_attitude_known)
     res = loop.run(t, tr.q_HT, tr.R_NH, tr.sun_H, tr.illumination, r, state0,
                    rng_observe=np.random.default_rng(s_obs), rng_register=np.random.default_rng(s_reg),
                    active=plan.active, inactive_reason=plan.failure_reason, snapshot_from=T // 2 if snapshot else None,
