@@ -170,18 +170,19 @@ def observe_epochs_calibrated(cams, T, target, q, sun, fsun, feats, rng, *, cali
 
 def observe_trials_calibrated(cams, T, target, q, sun, fsun, feats, rngs, *, calibration, min_views,
                               descriptor_noise, margin_px, batch_size) -> list[list[Observation]]:
-    """The calibrated model for R independent trials of E consecutive epochs each, geometry batched.
+    """The calibrated model for R independent trials of E consecutive epochs each.
 
     ``T (R, E, n, 4, 4)``, ``q (R, E, 4)``, ``sun (R, E, 3)``, ``fsun (R, E)`` and one generator per
-    trial in ``rngs``.  The projection, detection and ray casting of all the trials' epochs are
-    computed together, ``batch_size`` epochs (whole trials) at a time, one Open3D call each; the
-    random draws of trial r come from ``rngs[r]`` alone and in the same order whatever the batch,
-    so a trial gives the same observations alone (:func:`observe_epochs_calibrated`) or batched.
-    Only the features that some epoch of the trial detects in two views take part in the draws
-    after detection.
+    trial in ``rngs``.  The random draws of trial r come from ``rngs[r]`` alone and in the same order
+    whatever the other trials, so a trial gives the same observations alone
+    (:func:`observe_epochs_calibrated`) or with others.  A feature whose detection uniform is above
+    the largest detection probability its material can have at the trial's ranges
+    (:func:`_detection_bound`) is never detected in that trial: it is left out of the trial's
+    projection and ray casting (exact, and most of the features at the close ranges, where the
+    feature set is sized for the densest surfaces).  Only the features that some epoch of the
+    trial detects in two views take part in the draws after detection.  ``batch_size`` is unused.
     """
-    from vision.geometric import _geometry, _occlude, _sun_T
-
+    del batch_size
     cal = calibration if calibration is not None else load_calibration(target.name)
     R, E, n = T.shape[:3]
     N = len(feats)
@@ -191,35 +192,73 @@ def observe_trials_calibrated(cams, T, target, q, sun, fsun, feats, rngs, *, cal
         else None
     f_px = np.array([math.sqrt(c.K[0, 0] * c.K[1, 1]) for c in cams])
     u_det = np.stack([r.random(N) for r in rngs])                         # (R, N), one per feature and trial
-    per = max(1, int(batch_size) // max(E, 1))                            # whole trials per geometry batch
+    c_dist = np.linalg.norm(np.einsum("...ji,...j->...i", T[..., :3, :3], T[..., :3, 3]), axis=-1)  # (R, E, n)
+    fp_lo = max(float(np.min(c_dist)) - target.radius_m, 1e-3) / float(np.max(f_px))
+    fp_hi = (float(np.max(c_dist)) + target.radius_m) / float(np.min(f_px))
+    bound = _detection_bound(cal, fp_lo, fp_hi, material) / rho_F       # (N,)
     out: list[list[Observation]] = []
-    for r0 in range(0, R, per):
-        rs = slice(r0, min(R, r0 + per))
-        k = rs.stop - r0
-        Tb, qb, sb = T[rs].reshape(k * E, n, 4, 4), q[rs].reshape(k * E, 4), sun[rs].reshape(k * E, 3)
-        fb = fsun[rs].reshape(k * E)
-        u = np.repeat(u_det[rs], E, axis=0)[:, None, :]                   # (kE, 1, N)
-        # every surface facing a camera counts, lit or not: keypoints on shadowed or unlit surfaces
-        # (shadow edges, silhouettes against lit parts) are measured as their own Sun bin
-        g = _geometry(cams, Tb, qb, sb, fb, feats, min_feature_px=0.0, cos_view=0.0, cos_sun=-2.0,
-                      margin_px=margin_px)
-        fp = g.z / f_px[None, :, None]                                    # (kE, n, N) m/px
-        side = np.where(g.cos_view >= 0, 1.0, -1.0)
-        can_lit = side * g.cos_sun > 0
-        with np.errstate(invalid="ignore", divide="ignore"):
-            fp_ok = np.where(g.vis, fp, 1.0)
-            p_lit = cal.density(fp_ok, g.cos_view, cal.sun_bin(side * g.cos_sun, can_lit), material) / rho_F
-            p_dark = cal.density(fp_ok, g.cos_view, np.zeros(fp.shape, dtype=int), material) / rho_F
-        # features above both detection probabilities are not detected whatever the ray casting gives:
-        # cast rays only for the others (the shadow of a feature decides only its own lit flag)
-        g.vis &= u < np.maximum(p_lit, p_dark)
-        dark = _occlude(g, target, feats, _sun_T(qb, sb), drop_shadowed=False)    # (kE, N)
-        g.vis &= u < np.where(can_lit & ~dark[:, None, :], p_lit, p_dark)
-        for j in range(k):
-            es = slice(j * E, (j + 1) * E)
-            out.append(_trial(g, es, fp[es], T[r0 + j], fsun[r0 + j], feats, cal, rngs[r0 + j], target=target,
-                              cams=cams, min_views=min_views, descriptor_noise=descriptor_noise, margin_px=margin_px))
+    for r in range(R):
+        keep = np.flatnonzero(u_det[r] < bound)
+        sub = _subset(feats, keep)
+        g, fp = _detect(cams, T[r], q[r], sun[r], fsun[r], sub, target, cal, u_det[r, keep],
+                        None if material is None else material[keep], rho_F, f_px, margin_px)
+        out.append(_trial(g, fp, keep, T[r], fsun[r], feats, cal, rngs[r], target=target, cams=cams,
+                          min_views=min_views, descriptor_noise=descriptor_noise, margin_px=margin_px))
     return out
+
+
+def _detection_bound(cal: SiftCalibration, fp_lo: float, fp_hi: float, material: np.ndarray | None) -> np.ndarray:
+    """Largest measured density (per m²) a feature of each material can have at footprints in
+    ``[fp_lo, fp_hi]`` m/px over every view-angle and Sun bin: ``(N,)`` (or a scalar without materials).
+
+    The density is piecewise linear in log footprint between the calibrated footprints (and beyond
+    them), so its largest value on the interval is at an end or at a calibrated footprint inside.
+    """
+    from vision.calibration import COS_VIEW_EDGES, SUN_BIN_EDGES
+
+    knots = cal.footprint_m_per_px[(cal.footprint_m_per_px > fp_lo) & (cal.footprint_m_per_px < fp_hi)]
+    fps = np.concatenate([[fp_lo, fp_hi], knots])
+    cos_v = 0.5 * (COS_VIEW_EDGES[:-1] + np.minimum(COS_VIEW_EDGES[1:], 1.0))
+    sun_b = np.arange(len(SUN_BIN_EDGES) - 1)
+    if material is None:
+        fp_g, v_g, s_g = np.meshgrid(fps, cos_v, sun_b, indexing="ij")
+        return np.asarray(np.max(cal.density(fp_g, v_g, s_g)) * (1.0 + 1e-9))
+    mats = np.arange(int(np.max(material)) + 1)
+    fp_g, v_g, s_g, m_g = np.meshgrid(fps, cos_v, sun_b, mats, indexing="ij")
+    per_material = np.max(cal.density(fp_g, v_g, s_g, m_g), axis=(0, 1, 2)) * (1.0 + 1e-9)
+    return per_material[material]
+
+
+def _subset(feats, keep: np.ndarray):
+    """The features ``keep`` for the geometry (positions, normals, scales; no descriptors)."""
+    from vision.geometric import SurfaceFeatures
+
+    return SurfaceFeatures(feats.X_T[keep], feats.normal_T[keep], feats.scale_m[keep], feats.descriptors[:0],
+                           feats.triangle_id[keep], feats.area_m2)
+
+
+def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f_px, margin_px):
+    """Projection, visibility and detection of one trial's epochs: the geometry (``vis`` the detections)
+    and the footprints ``(E, n, N)``, m/px."""
+    from vision.geometric import _geometry, _occlude, _sun_T
+
+    # every surface facing a camera counts, lit or not: keypoints on shadowed or unlit surfaces
+    # (shadow edges, silhouettes against lit parts) are measured as their own Sun bin
+    g = _geometry(cams, T, q, sun, fsun, feats, min_feature_px=0.0, cos_view=0.0, cos_sun=-2.0, margin_px=margin_px)
+    fp = g.z / f_px[None, :, None]                                        # (E, n, N) m/px
+    side = np.where(g.cos_view >= 0, 1.0, -1.0)
+    can_lit = side * g.cos_sun > 0
+    u = u_det[None, None, :]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fp_ok = np.where(g.vis, fp, 1.0)
+        p_lit = cal.density(fp_ok, g.cos_view, cal.sun_bin(side * g.cos_sun, can_lit), material) / rho_F
+        p_dark = cal.density(fp_ok, g.cos_view, np.zeros(fp.shape, dtype=int), material) / rho_F
+    # features above both detection probabilities are not detected whatever the ray casting gives:
+    # cast rays only for the others (the shadow of a feature decides only its own lit flag)
+    g.vis &= u < np.maximum(p_lit, p_dark)
+    dark = _occlude(g, target, feats, _sun_T(q, sun), drop_shadowed=False)     # (E, N)
+    g.vis &= u < np.where(can_lit & ~dark[:, None, :], p_lit, p_dark)
+    return g, fp
 
 
 def _descriptors(labels: np.ndarray, feats, extra: dict, rng: np.random.Generator) -> np.ndarray:
@@ -238,20 +277,21 @@ def _descriptors(labels: np.ndarray, feats, extra: dict, rng: np.random.Generato
     return out
 
 
-def _trial(g, es, fp, T, fsun, feats, cal, rng, *, target, cams, min_views, descriptor_noise,
+def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, descriptor_noise,
            margin_px) -> list[Observation]:
-    """Matching, localisation, false matches and association of one trial's epochs ``es`` of a batch."""
+    """Matching, localisation, false matches and association of one trial's epochs, from its detections
+    ``g`` (:func:`_detect`) of the features ``ids`` of ``feats``."""
     from vision.geometric import _false_matches
 
     E, n = fp.shape[:2]
     N, D = feats.descriptors.shape
     size = tuple(int(s) for s in cams[0].image_size)
     sigma0 = float(np.mean(cal.sigma_px))
-    vis = g.vis[es]
-    cand = np.nonzero(np.any(vis.sum(axis=1) >= 2, axis=0))[0]            # features that can form a track
+    cand = np.nonzero(np.any(g.vis.sum(axis=1) >= 2, axis=0))[0]          # features that can form a track
     C = cand.size
-    det_all = vis[:, :, cand]                                             # (E, n, C)
+    det_all = g.vis[:, :, cand]                                           # (E, n, C)
     fp_c = fp[:, :, cand]
+    cand_id = ids[cand]                                                   # their indices in feats
     v_size = rng.random(C)
     rho_c, rho_t = _calibration_correlations(cal)
     # copula variables of every candidate's view pairs: a common factor and one per pair, each an
@@ -259,21 +299,20 @@ def _trial(g, es, fp, T, fsun, feats, cal, rng, *, target, cams, min_views, desc
     w_pair = rng.standard_normal(C)
     e_pair = rng.standard_normal((C, n, n))
     first = True
-    state = cand.astype(np.int64)                                         # descriptor labels (< N: own)
+    state = cand_id.astype(np.int64)                                      # descriptor labels (< N: own)
     next_label = N
     extra: dict = {}
     prev = None                                                           # (R_CT (n,3,3), tracked, states)
     out: list[Observation] = []
     for k in range(E):
-        ek = es.start + k
-        if fsun[k] == 0.0 or g.in_fov[ek].sum() < 2:
+        if fsun[k] == 0.0 or g.in_fov[k].sum() < 2:
             out.append(Observation.empty(g.K, T[k], size, sigma0,
                                          REASON_EARTH_SHADOW if fsun[k] == 0.0 else REASON_OUTSIDE_FOV,
                                          descriptor_dim=D))
             prev = None
             continue
         det = det_all[k].T                                                # (C, n)
-        c_dir = g.c_T[ek] / np.linalg.norm(g.c_T[ek], axis=1, keepdims=True)
+        c_dir = g.c_T[k] / np.linalg.norm(g.c_T[k], axis=1, keepdims=True)
         ang = np.degrees(np.arccos(np.clip(c_dir @ c_dir.T, -1.0, 1.0)))   # (n, n) between the cameras
         n_det = det.sum(axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -297,7 +336,7 @@ def _trial(g, es, fp, T, fsun, feats, cal, rng, *, target, cams, min_views, desc
         seen = members[is_track]                                          # (M, n)
         # association state: keep, renew or (false association) take another feature's descriptor
         if prev is not None:
-            change = float(np.mean(_rotation_angle_deg(g.R_CT[ek] @ np.swapaxes(prev[0], -1, -2))))
+            change = float(np.mean(_rotation_angle_deg(g.R_CT[k] @ np.swapaxes(prev[0], -1, -2))))
             fin = np.isfinite(fp_f)
             fpa = np.where(fin, fp_f, float(np.median(fp_f[fin])) if fin.any() else 1.0)
             keep = rng.random(C) < cal.association_survival_at(fpa, change)
@@ -318,10 +357,10 @@ def _trial(g, es, fp, T, fsun, feats, cal, rng, *, target, cams, min_views, desc
         M = len(fid)
         if M == 0:
             out.append(Observation.empty(g.K, T[k], size, sigma0, REASON_TOO_FEW_MATCHES, descriptor_dim=D))
-            prev = (g.R_CT[ek], fid, state.copy())
+            prev = (g.R_CT[k], fid, state.copy())
             continue
-        gid = cand[fid]
-        uv_e = np.swapaxes(g.uv[ek][:, gid], 0, 1).copy()                 # (M, n, 2)
+        loc, gid = cand[fid], cand_id[fid]
+        uv_e = np.swapaxes(g.uv[k][:, loc], 0, 1).copy()                  # (M, n, 2)
         fp_m = fp_c[k][:, fid].T                                          # (M, n)
         size_px = cal.size_px(fp_m, np.broadcast_to(v_size[fid, None], (M, n)))
         sig = cal.sigma_for_size(size_px, fp_m)
@@ -333,12 +372,12 @@ def _trial(g, es, fp, T, fsun, feats, cal, rng, *, target, cams, min_views, desc
             desc /= np.linalg.norm(desc, axis=1, keepdims=True)
         ids = gid.astype(np.int64)
         X_true = feats.X_T[gid].copy()
-        prev = (g.R_CT[ek], fid, state.copy())
+        prev = (g.R_CT[k], fid, state.copy())
         pair = [(i, j) for i in range(n) for j in range(i + 1, n)]
         fp_med = float(np.median(fp_f[fid]))
         fm = float(np.mean([cal.false_match_rate_at(fp_med, ang[i, j]) for i, j in pair]))
         if fm > 0:
-            keep_m = _false_matches(rng, fm, uv_e, seen, g.z[ek][:, gid].T, cams, T[k], desc, ids, X_true,
+            keep_m = _false_matches(rng, fm, uv_e, seen, g.z[k][:, loc].T, cams, T[k], desc, ids, X_true,
                                     target.radius_m, float(np.median(sig)), margin_px)
             uv_e, desc, ids, X_true = uv_e[keep_m], desc[keep_m], ids[keep_m], X_true[keep_m]
             sig, size_px = sig[keep_m], size_px[keep_m]

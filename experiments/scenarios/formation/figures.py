@@ -73,6 +73,9 @@ def error_map_figures(ds: xr.Dataset, fig_dir: Path, *, format: str = "png") -> 
 
     All panels share the colour range :data:`ERROR_MAP_RANGE_DEG` (viridis) and one colour bar; values
     above it keep the top colour, the bar's arrow marks them and each cell's label gives its value.
+    With ``failed_steps`` in the dataset a fourth column gives the percentage of the cell's steps
+    whose registration was refused (failed, or rejected by the evidence checks): the medians beside
+    it are over the surviving steps and trials only.
     """
     check_format(format)
     paths: list[Path] = []
@@ -82,9 +85,11 @@ def error_map_figures(ds: xr.Dataset, fig_dir: Path, *, format: str = "png") -> 
     e = ds["e_dtheta_deg"].median("trial", skipna=True)
     step = ds["step_rms_deg"].median("trial", skipna=True)
     crlb = ds["crlb_deg"].median("trial", skipna=True)
+    refused = _refused_percent(ds) if "failed_steps" in ds else None
+    ncol = 3 if refused is None else 4
     vmin, vmax = ERROR_MAP_RANGE_DEG
     for sel in _combos(ds, other):
-        fig, axes = plt.subplots(len(views), 3, figsize=(15.0, 3.8 * len(views) + 0.4), layout="constrained",
+        fig, axes = plt.subplots(len(views), ncol, figsize=(5.0 * ncol, 3.8 * len(views) + 0.4), layout="constrained",
                                  squeeze=False)
         shown = []
         for r, nv in enumerate(views):
@@ -97,12 +102,33 @@ def error_map_figures(ds: xr.Dataset, fig_dir: Path, *, format: str = "png") -> 
                 shown.append(m)
                 plot_map(m, ds[x].values, ds[y].values, ax=axes[r, c], vmin=vmin, vmax=vmax, cmap="viridis",
                          xlabel=_X_LABEL, ylabel=_Y_LABEL, title=f"{tag}: {what}", annotate=True, colorbar=False)
-        fig.colorbar(axes[0, 0].collections[0], ax=axes.ravel().tolist(), label="angle error [deg]",
+            if refused is not None:
+                plot_map(refused.sel(s).transpose(y, x).values, ds[x].values, ds[y].values, ax=axes[r, 3],
+                         vmin=0.0, vmax=100.0, cmap="cividis", xlabel=_X_LABEL, ylabel=_Y_LABEL,
+                         title=f"{tag}: steps refused", cbar_label="refused steps [%]", annotate=True,
+                         fmt="{:.0f}")
+        fig.colorbar(axes[0, 0].collections[0], ax=axes[:, :3].ravel().tolist(), label="angle error [deg]",
                      extend=clipped_extend(np.concatenate([m.ravel() for m in shown]), vmin, vmax))
         extra = ", ".join(f"{k} = {v}" for k, v in sel.items())
         fig.suptitle(f"Experiment A error maps (003 Figs 5-6){' - ' + extra if extra else ''}")
         paths.append(save(fig, figure_path(fig_dir, f"error_maps{_suffix(sel)}", format)))
     return paths
+
+
+def _refused_percent(ds: xr.Dataset) -> xr.DataArray:
+    """Percentage of each cell's registration steps refused: ``Σ failed_steps / (trials × steps)``, the
+    steps per trial from the stored config and its overrides (``error_map.steps``)."""
+    import json
+    import tomllib
+
+    steps = float(ds["failed_steps"].max())
+    try:
+        steps = float(tomllib.loads(ds.attrs["config_toml"])["error_map"]["steps"])
+        steps = float(json.loads(ds.attrs.get("overrides", "{}")).get("error_map.steps", steps))
+    except (KeyError, ValueError, TypeError):
+        pass
+    done = ds["failed_steps"].notnull()
+    return 100.0 * ds["failed_steps"].sum("trial", skipna=True) / (steps * done.sum("trial"))
 
 
 def convergence_map_figures(ds: xr.Dataset, fig_dir: Path, *, frac: xr.DataArray, tmed: xr.DataArray,
