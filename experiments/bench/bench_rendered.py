@@ -127,6 +127,6 @@ def run(*, quick: bool = False) -> list[BenchRow]:
         for name in sensors:
             per_frame = {k: 1e3 * v / (repeat * frames) for k, v in stages[name].items()}
             rows.append(BenchRow(
-                f"{name}'s path at {d:.0f} m, one thread: CPU ms per camera-frame", sum(per_frame.values()), "ms",
+                f"{'today' if name == 'today' else 'new'} path at {d:.0f} m, one thread: CPU ms per camera-frame", sum(per_frame.values()), "ms",
                 note=", ".join(f"{k} {v:.1f}" for k, v in per_frame.items())))
     return rows
