@@ -36,6 +36,7 @@ from vision.calibration import TRACK_CLASSES, SiftCalibration, track_class
 from vision.camera import PinholeCamera
 from vision.features import match_views
 from vision.rendered import detect_views, label_tracks, render_views
+from vision.sensor import SensorModel
 from vision.target import Target, fy1_target, load_mesh
 
 __all__ = ["NeesSpec", "add_triangulation_nees", "increment_nees", "measure_inflation"]
@@ -212,5 +213,7 @@ def add_triangulation_nees(data: dict, spec: NeesSpec, *, command: str = "",
         "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "wall_s": round(time.perf_counter() - t0, 1),
         "spec": {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(spec).items()},
-        "truth": "experiments.studies.triangulation_consistency (truth point's own error accounted for)"}}
+        "truth": "experiments.studies.triangulation_consistency (truth point's own error accounted for)",
+        "renderer": {"function": "vision.rendered.render_views", "sensor": dataclasses.asdict(SensorModel()),
+                     "detector": "vision.rendered.detect_views (sift)", "matching": "vision.features.match_views"}}}
     return out
