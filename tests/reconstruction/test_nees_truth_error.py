@@ -56,3 +56,31 @@ def test_nees_with_the_truth_points_error_is_three_where_the_plain_one_is_not(n_
     assert abs(plain.mean() / expected.mean() - 1.0) < 0.07
     if n_views == 3:
         assert plain.mean() > 4.0                               # the first view's error counted twice
+
+
+@pytest.mark.parametrize("shared_fraction", [0.0, 0.5])
+def test_increment_nees_is_three_for_independent_errors_and_drops_with_the_error_both_epochs_share(shared_fraction):
+    """A feature's body-point error split into a part both epochs share (it moves with the body) and
+    an independent part: the increment NEES with the full covariance is 3 × the independent fraction."""
+    from types import SimpleNamespace
+
+    from attitude.quaternion import matrix_from_quat, quat_from_rotvec
+    from experiments.studies.nees_calibration import increment_nees
+
+    rng = np.random.default_rng(3)
+    m = 6000
+    X_T = rng.uniform(-2.0, 2.0, (m, 3))
+    q_a, q_b = quat_from_rotvec([0.3, -0.2, 0.5]), quat_from_rotvec([0.31, -0.19, 0.51])
+    var = 1e-4                                                         # m² per axis, total
+    shared = np.sqrt(shared_fraction * var) * rng.normal(size=(m, 3))
+    frames = []
+    for q in (q_a, q_b):
+        R = matrix_from_quat(q)
+        err_T = shared + np.sqrt((1 - shared_fraction) * var) * rng.normal(size=(m, 3))
+        obs = SimpleNamespace(feature_id=np.arange(m), X_T_true=X_T)
+        tri = SimpleNamespace(valid=np.ones(m, bool), X_W=(X_T + err_T) @ R.T,
+                              cov_W=np.broadcast_to(var * np.eye(3), (m, 3, 3)))
+        frames.append((obs, tri))
+    v, ia = increment_nees(frames[0], frames[1], q_a, q_b, tol_m=1e-6)
+    assert ia.size == m
+    assert abs(v.mean() - 3.0 * (1 - shared_fraction)) < 0.15
