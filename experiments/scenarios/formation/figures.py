@@ -116,8 +116,9 @@ def error_map_figures(ds: xr.Dataset, fig_dir: Path, *, format: str = "png") -> 
 
 
 def _refused_percent(ds: xr.Dataset) -> xr.DataArray:
-    """Percentage of each cell's registration steps refused: ``Σ failed_steps / (trials × steps)``, the
-    steps per trial from the stored config and its overrides (``error_map.steps``)."""
+    """Percentage of each cell's registration steps refused: ``Σ failed_steps / (trials × steps)``, a trial
+    with a ``failure_reason`` (every step refused) counting all its steps; the steps per trial from the
+    stored config and its overrides (``error_map.steps``)."""
     import json
     import tomllib
 
@@ -127,8 +128,10 @@ def _refused_percent(ds: xr.Dataset) -> xr.DataArray:
         steps = float(json.loads(ds.attrs.get("overrides", "{}")).get("error_map.steps", steps))
     except (KeyError, ValueError, TypeError):
         pass
-    done = ds["failed_steps"].notnull()
-    return 100.0 * ds["failed_steps"].sum("trial", skipna=True) / (steps * done.sum("trial"))
+    failed = ds["failed_steps"]
+    if "failure_reason" in ds:  # a trial that failed outright (every step refused) stores no metrics
+        failed = xr.where(ds["failure_reason"] != "", steps, failed)
+    return 100.0 * failed.sum("trial", skipna=True) / (steps * failed.notnull().sum("trial"))
 
 
 def convergence_map_figures(ds: xr.Dataset, fig_dir: Path, *, frac: xr.DataArray, tmed: xr.DataArray,
