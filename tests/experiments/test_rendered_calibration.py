@@ -46,3 +46,23 @@ def test_quick_calibration_writes_a_readable_file_with_its_command(tmp_path):
 def test_calibrate_refuses_an_unknown_target_in_one_line():
     res = runner.invoke(app, ["calibrate", "--quick", "--targets", "fy2"])
     assert res.exit_code == 2 and "--targets" in res.output and len(res.output.strip().splitlines()) == 1
+
+
+def test_nees_only_adds_the_inflation_and_keeps_the_other_tables(tmp_path):
+    from vision.calibration import calibration_path
+
+    out = tmp_path / "cal.json"
+    shipped = json.loads(calibration_path().read_text())
+    for t in shipped["targets"].values():
+        t.pop("triangulation_nees", None)
+    shipped["provenance"].pop("triangulation_nees", None)
+    shipped["targets"] = {"fy1": shipped["targets"]["fy1"]}
+    out.write_text(json.dumps(shipped))
+    res = runner.invoke(app, ["calibrate", "--nees-only", "--quick", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    data = json.loads(out.read_text())
+    t = data["targets"]["fy1"]
+    assert t["sigma_px"] == shipped["targets"]["fy1"]["sigma_px"] and t["keypoints"] == shipped["targets"]["fy1"]["keypoints"]
+    p = data["provenance"]["triangulation_nees"]
+    assert p["command"].startswith("coobs calibrate --nees-only --quick") and p["spec"]["attitudes"] == 1
+    assert data["format_version"] == 2 and len(t["triangulation_nees"]["points"]) == len(t["ranges_m"])
