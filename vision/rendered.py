@@ -47,7 +47,8 @@ def render_views(camera: PinholeCamera | Sequence[PinholeCamera], T_CW: ArrayLik
 
     ``T_CW`` is ``(n, 4, 4)``; ``render_options`` go to :func:`vision.render.render`.  ``batched``:
     all views in one :func:`vision.render.render_batch` call (the same images, faster); ``False``
-    renders view by view (the path before issue 16, kept as the benchmark's baseline).
+    renders view by view (with ``sensor=SensorModel(noise_stream="tiles")``, the path before issue 16
+    item 7, kept as the benchmark's baseline).
     """
     T = check_pose(T_CW, name="T_CW")
     if T.ndim != 3:
