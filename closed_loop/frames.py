@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -48,14 +49,20 @@ class Frame:
         m and rad), the information the frame's points hold on a motion ``Xᵢ ← Xᵢ + δθ × Xᵢ + δt``
         of the whole cloud.
         """
+        info = self._point_information
+        if points is None:
+            return info.sum(axis=0)
+        return info[np.unique(np.asarray(points, dtype=int))].sum(axis=0)
+
+    @cached_property
+    def _point_information(self) -> np.ndarray:
+        """Per track ``Jᵢᵀ Cᵢ⁻¹ Jᵢ`` (M, 6, 6), zero for invalid points (computed once per frame)."""
         v = np.asarray(self.tri.valid, bool) & np.all(np.isfinite(self.tri.X_W), -1)
-        if points is not None:
-            keep = np.zeros_like(v)
-            keep[np.asarray(points, dtype=int)] = True
-            v &= keep
+        out = np.zeros((v.size, 6, 6))
         S = cross_product_matrices(self.tri.X_W[v])  # [X×]
         J = np.concatenate([-S, np.broadcast_to(np.eye(3), S.shape)], axis=2)  # (N, 3, 6)
-        return np.einsum("nki,nkl,nlj->ij", J, np.linalg.inv(self.tri.cov_W[v]), J)
+        out[v] = np.einsum("nki,nkl,nlj->nij", J, np.linalg.inv(self.tri.cov_W[v]), J)
+        return out
 
     def rotation_covariance_H(self, points: np.ndarray | None = None) -> np.ndarray:
         """Covariance of the orientation of the triangulated cloud, or of the tracks ``points`` of it (rad², H).
