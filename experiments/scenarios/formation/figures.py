@@ -9,6 +9,8 @@ are compared share one colour range and one colour bar, with arrows for clipped 
 from __future__ import annotations
 
 import itertools
+import json
+import tomllib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -184,9 +186,22 @@ def sweep_figures(ds: xr.Dataset, fig_dir: Path, *, format: str = "png") -> list
         frac = ds["converged"].mean("trial", skipna=True)
         tmed = ds["convergence_time_s"].median("trial", skipna=True)
         return convergence_map_figures(ds, fig_dir, frac=frac, tmed=tmed, name="convergence_maps_closed_loop",
-                                       title="Closed loop end to end (observation - registration - EKF)",
+                                       title=f"Closed loop end to end (observation - registration - {_sweep_estimator(ds)})",
                                        format=format)
     return sweep_overview_figures(ds, fig_dir, format=format)
+
+
+def _sweep_estimator(ds: xr.Dataset) -> str:
+    """The estimator a closed-loop sweep ran, from its stored config and ``--set`` overrides ("estimator" when swept)."""
+    if "estimator.filter" in str(ds.attrs.get("swept_keys", "")):
+        return "estimator"
+    try:
+        table = tomllib.loads(str(ds.attrs.get("config_toml", ""))).get("estimator", {})
+        over = json.loads(str(ds.attrs.get("overrides", "") or "{}"))
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError):
+        return "estimator"
+    name = str(over.get("estimator.filter", table.get("filter", "ekf")))
+    return name.upper() if name in ("ekf", "mekf") else name
 
 
 def ekf_figures(ds: xr.Dataset, fig_dir: Path, *, format: str = "png") -> list[Path]:
@@ -326,7 +341,8 @@ def _errors_figure(ds: xr.Dataset):
         if sig in ds:
             bound = 3.0 * np.sqrt(np.sum(ds[sig].values ** 2, axis=-1))
             plot_envelope(t, np.maximum(bound, floor), ax=ax, floor=floor,
-                          label="filter 3σ bound, 3·sqrt(trace P)")
+                          label="smoother 3σ bound (iSAM2 marginals)" if ds.attrs.get("filter") == "smoother"
+                          else "filter 3σ bound, 3·sqrt(trace P)")
         plot_time_series(t, ds[err].values, ax=ax, logy=True, threshold=float(ds.attrs.get(th, np.nan)),
                          threshold_label="convergence threshold", ylabel=ylab, xlabel="", legend=False,
                          labels=["error (estimate vs truth)"], colors=["#440154"])
