@@ -283,10 +283,6 @@ class AttitudeSmoother:
             c = self._marginal_cache[k] = self._isam.marginalCovariance(Y(k))
         return c
 
-    def has_frame(self, k: int) -> bool:
-        """Whether epoch ``k``'s cloud orientation ``B_k`` is in the graph."""
-        return k in self._frame_cov
-
     def add_frame(self, k: int, cov_frame_N: np.ndarray) -> None:
         """The cloud orientation ``B_k`` of epoch ``k``'s frame, with its covariance (left, N, rad²); once per epoch."""
         if k in self._frame_cov:

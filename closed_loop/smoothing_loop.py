@@ -212,11 +212,11 @@ class SmoothingLoop:
             accepted.append((j, other, R_NH_j, dR_N, cov_N, inc, mode))
         # each frame's share (its cloud's orientation error, common to its registrations) over the points
         # registrations confirmed: this epoch's inliers for the new frame, the first link's for an older one
-        _add_share(sm, rec.share, k, frame, R_NH[k], [a[5].inliers_curr for a in accepted])
+        _add_share(sm, rec.share, k, frame, R_NH[k], [inc.inliers_curr for *_, inc, _ in accepted])
         for j, other, R_NH_j, dR_N, cov_N, inc, mode in accepted:
             _add_share(sm, rec.share, j, other, R_NH_j, [inc.inliers_prev])
-            rem = (_remainder(cov_N, dR_N, (frame, R_NH[k], inc.inliers_curr, rec.share.get(k)),
-                              (other, R_NH_j, inc.inliers_prev, rec.share.get(j))))
+            rem = _remainder(cov_N, dR_N, (frame, R_NH[k], inc.inliers_curr, rec.share.get(k)),
+                             (other, R_NH_j, inc.inliers_prev, rec.share.get(j)))
             sm.add_relative(j, k, dR_N, cov_N, remainder_N=rem,
                             inflation=model.settings.closure_inflation if mode != "previous" else 1.0)
             links.append((j, inc, mode))
@@ -235,8 +235,8 @@ class SmoothingLoop:
 def _add_share(sm: AttitudeSmoother, shares: dict, k: int, frame: Frame, R_NH_k: np.ndarray,
                inliers: list[np.ndarray]) -> None:
     """Give epoch ``k``'s frame its cloud-orientation share in ``sm`` (once) over the union of ``inliers``
-    (kept in ``shares``: epoch → track indices)."""
-    if sm.has_frame(k) or not inliers:
+    (kept in ``shares``: epoch → track indices, the frames that have one)."""
+    if k in shares or not inliers:
         return
     pts = np.unique(np.concatenate(inliers))
     cf = frame.rotation_covariance_H(pts)
