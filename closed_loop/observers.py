@@ -182,14 +182,7 @@ class GeometricObserver(Observer):
         """
         from vision.geometric import observe_epochs
 
-        n = int(self.n_features)
-        surface = "all"
-        if self.noise_model == "calibrated":  # on the outer surface only (vision.outer_surface)
-            from vision.geometric_calibrated import calibrated_feature_count
-
-            n, surface = max(n, calibrated_feature_count(self.camera, self.target, np.asarray(T_CW))), "outer"
-        return observe_epochs(self.camera, T_CW, self.target, q_HT, sun_H, rng=rng,
-                              features=_surface_features(self.target, n, surface),
+        return observe_epochs(self.camera, T_CW, self.target, q_HT, sun_H, rng=rng, features=self._features(T_CW),
                               pixel_sigma_px=self.pixel_sigma_px, false_match_fraction=self.false_match_fraction,
                               sun_visible_fraction=sun_visible_fraction, noise_model=self.noise_model)
 
@@ -200,17 +193,19 @@ class GeometricObserver(Observer):
         ``rngs[r]``; the calibrated model batches the trials' geometry (:func:`vision.geometric.observe_trials`)."""
         from vision.geometric import observe_trials
 
-        n = int(self.n_features)
-        surface = "all"
-        if self.noise_model == "calibrated":
-            from vision.geometric_calibrated import calibrated_feature_count
-
-            n = max(n, calibrated_feature_count(self.camera, self.target, np.asarray(T_CW).reshape(-1, 4, 4)))
-            surface = "outer"
-        return observe_trials(self.camera, T_CW, self.target, q_HT, sun_H, rngs=rngs,
-                              features=_surface_features(self.target, n, surface),
+        return observe_trials(self.camera, T_CW, self.target, q_HT, sun_H, rngs=rngs, features=self._features(T_CW),
                               pixel_sigma_px=self.pixel_sigma_px, false_match_fraction=self.false_match_fraction,
                               noise_model=self.noise_model)
+
+    def _features(self, T_CW: np.ndarray):
+        """The surface features the poses ``T_CW (..., 4, 4)`` need: ``n_features`` over the whole surface, or
+        with the calibrated model as many as its densest bin asks on the outer surface (:mod:`vision.outer_surface`)."""
+        if self.noise_model != "calibrated":
+            return _surface_features(self.target, int(self.n_features), "all")
+        from vision.geometric_calibrated import calibrated_feature_count
+
+        n = max(int(self.n_features), calibrated_feature_count(self.camera, self.target, np.asarray(T_CW)))
+        return _surface_features(self.target, n, "outer")
 
 
 #: observation mode (config ``observation.mode``) → observer class
