@@ -121,14 +121,10 @@ def _refused_percent(ds: xr.Dataset) -> xr.DataArray:
     """Percentage of each cell's registration steps refused: ``Σ failed_steps / (trials × steps)``, a trial
     with a ``failure_reason`` (every step refused) counting all its steps; the steps per trial from the
     stored config and its overrides (``error_map.steps``)."""
-    import json
-    import tomllib
-
-    steps = float(ds["failed_steps"].max())
+    steps = float(ds["failed_steps"].max())  # when the stored config cannot be read: the most refused
     try:
-        steps = float(tomllib.loads(ds.attrs["config_toml"])["error_map"]["steps"])
-        steps = float(json.loads(ds.attrs.get("overrides", "{}")).get("error_map.steps", steps))
-    except (KeyError, ValueError, TypeError):
+        steps = float(_stored_setting(ds, "error_map.steps", steps))
+    except (ValueError, TypeError):
         pass
     failed = ds["failed_steps"]
     if "failure_reason" in ds:  # a trial that failed outright (every step refused) stores no metrics
@@ -196,12 +192,18 @@ def _sweep_estimator(ds: xr.Dataset) -> str:
     if "estimator.filter" in str(ds.attrs.get("swept_keys", "")):
         return "estimator"
     try:
-        table = tomllib.loads(str(ds.attrs.get("config_toml", ""))).get("estimator", {})
-        over = json.loads(str(ds.attrs.get("overrides", "") or "{}"))
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError):
+        name = str(_stored_setting(ds, "estimator.filter", "ekf"))
+    except ValueError:
         return "estimator"
-    name = str(over.get("estimator.filter", table.get("filter", "ekf")))
     return name.upper() if name in ("ekf", "mekf") else name
+
+
+def _stored_setting(ds: xr.Dataset, key: str, default):
+    """The value of ``key`` (``"table.name"``) a sweep ran with: its stored config after its ``--set``
+    overrides, ``default`` where neither sets it (``ValueError`` when they cannot be parsed)."""
+    table, name = key.split(".", 1)
+    value = tomllib.loads(str(ds.attrs.get("config_toml", ""))).get(table, {}).get(name, default)
+    return json.loads(str(ds.attrs.get("overrides", "") or "{}")).get(key, value)
 
 
 def ekf_figures(ds: xr.Dataset, fig_dir: Path, *, format: str = "png") -> list[Path]:
