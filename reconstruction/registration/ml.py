@@ -125,8 +125,7 @@ def fit_rigid_ml(P: ArrayLike, Q: ArrayLike, cov_P: ArrayLike, cov_Q: ArrayLike,
         if robust:
             inl = valid & (mahalanobis2(r, W) < gate2)
         Wm = W * inl[..., None, None]
-        RP = Pz @ np.swapaxes(R, -1, -2)
-        Sx = cross_product_matrices(RP)  # ∂r/∂δθ = [RP×], ∂r/∂δt = −I
+        Sx = cross_product_matrices(_lever_H(R, Pz, cPz, W, r))  # ∂r/∂δθ = [R X̂×], ∂r/∂δt = −I
         StW = np.swapaxes(Sx, -1, -2) @ Wm
         Htt = np.sum(StW @ Sx, axis=1)
         Htx = -np.sum(StW, axis=1)
@@ -156,7 +155,7 @@ def fit_rigid_ml(P: ArrayLike, Q: ArrayLike, cov_P: ArrayLike, cov_Q: ArrayLike,
     d2 = np.where(inl, mahalanobis2(r, W), 0.0)
     # final information and covariance
     Wm = W * inl[..., None, None]
-    Sx = cross_product_matrices(Pz @ np.swapaxes(R, -1, -2))
+    Sx = cross_product_matrices(_lever_H(R, Pz, cPz, W, r))
     StW = np.swapaxes(Sx, -1, -2) @ Wm
     Hm = np.empty((B, 6, 6))
     Hm[:, :3, :3] = np.sum(StW @ Sx, axis=1)
@@ -187,3 +186,20 @@ def fit_rigid_ml(P: ArrayLike, Q: ArrayLike, cov_P: ArrayLike, cov_Q: ArrayLike,
     )
 
 
+
+
+def _lever_H(R: np.ndarray, P: np.ndarray, cov_P: np.ndarray, W: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The rotated best estimate of the true points, ``R X̂ = R P + R C_P Rᵀ W r`` (B, N, 3), m.
+
+    ``X̂ = P + C_P Rᵀ W r`` minimises ``(P − X)ᵀ C_P⁻¹ (P − X) + (Q − R X − t)ᵀ C_Q⁻¹ (Q − R X − t)``
+    for the current motion: the true points of the errors-in-variables likelihood, eliminated in
+    closed form.  Its gradient in ``[δθ, δt]`` (variable projection) is ``Σ Jᵢᵀ Wᵢ rᵢ`` with the lever
+    arm ``R X̂ᵢ``, and the Schur complement of its Gauss–Newton information over the points is
+    ``Σ Jᵢᵀ Wᵢ Jᵢ`` with that same lever arm.  Taking the noisy ``R Pᵢ`` instead (iteratively
+    reweighted least squares, which treats ``W`` as fixed) correlates the lever arm with the residual
+    through ``R C_P Rᵀ W``; where the clouds' covariances are elongated along the line of sight and
+    the target turns between the epochs, that biases the rotation by about half its own σ (3 views
+    at 70 m / 5°, measured against the truth).
+    """
+    Ca = R[:, None] @ cov_P @ np.swapaxes(R, -1, -2)[:, None]
+    return P @ np.swapaxes(R, -1, -2) + (Ca @ (W @ r[..., None]))[..., 0]

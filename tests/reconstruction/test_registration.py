@@ -243,10 +243,33 @@ def test_ml_with_isotropic_equal_covariances_equals_kabsch():
     kb = fit_rigid(P, Q)
     np.testing.assert_allclose(ml.R, kb.R, atol=1e-10)
     np.testing.assert_allclose(ml.t, kb.t, atol=1e-10)
-    # isotropic covariance σ²(1+1): rotation covariance (Σ [R p̃×]ᵀ[R p̃×] / 2σ²)⁻¹, p̃ centred
-    Pc = (P - P.mean(0)) @ ml.R.T
+    # isotropic covariance σ²(1+1): rotation covariance (Σ [R x̃×]ᵀ[R x̃×] / 2σ²)⁻¹ about the best
+    # estimate of the true points, x̂ = (P + Rᵀ(Q − t)) / 2, centred
+    X = 0.5 * (P + (Q - ml.t) @ ml.R)
+    Pc = (X - X.mean(0)) @ ml.R.T
     Hrot = sum((np.cross(np.eye(3), p).T @ np.cross(np.eye(3), p)) for p in Pc) / 2e-4
     np.testing.assert_allclose(ml.cov[:3, :3], np.linalg.inv(Hrot), rtol=1e-6)
+
+
+def test_ml_consistent_with_clouds_elongated_along_the_line_of_sight():
+    """Both clouds' covariances elongated 10:1 along one fixed direction of H (the line of sight of a
+    small-baseline formation) while the target turns 20° between the epochs: over 400 noise draws the
+    fit's rotation error has NEES within 10 % of 3 against its own covariance.  (With the noisy lever
+    arms R P, iteratively reweighted least squares, the mean NEES here was 4.9.)"""
+    rng = np.random.default_rng(3)
+    N, draws = 30, 400
+    X_T = rng.uniform(-0.5, 0.5, (N, 3))
+    R = Rotation.from_rotvec(np.radians(20.0) * np.array([0.6, 0.8, 0.0])).as_matrix()
+    t = np.array([0.1, -0.2, 0.05])
+    cov = np.broadcast_to(np.diag([0.01, 0.01, 0.1]) ** 2, (N, 3, 3))
+    L = np.linalg.cholesky(cov[0])
+    P = X_T + rng.standard_normal((draws, N, 3)) @ L.T
+    Q = _apply(R, t, X_T) + rng.standard_normal((draws, N, 3)) @ L.T
+    fit = fit_rigid_ml(P, Q, np.broadcast_to(cov, (draws, N, 3, 3)), np.broadcast_to(cov, (draws, N, 3, 3)),
+                       robust=False)
+    e = rotvecs_from_matrices(fit.R @ R.T)
+    nees = np.einsum("ri,rij,rj->r", e, np.linalg.inv(fit.cov[:, :3, :3]), e)
+    assert abs(nees.mean() / 3.0 - 1.0) < 0.10, nees.mean()
 
 
 def _box_cloud(rng, n=3000):
