@@ -61,13 +61,6 @@ class SmootherSettings:
         χ²₃ quantile of the innovation gate on every relative rotation.
     huber_k : float
         Huber threshold (whitened units) of the relative-rotation factors.
-    registration_excess : float
-        Fraction of a registration's covariance added to the remainder its frames' shares leave
-        (:meth:`AttitudeSmoother.add_relative` with ``remainder_N``): the part of a registration's
-        error that neither frame's share holds and the linear subset model misses.  Against the
-        truth that model's remainder alone was 1.25× (3 views, 50 m / 10°) to 3.4× (70 m / 5°) too
-        small; 0 left the 60 s runs overconfident (average NEES 15.7 at 70 m / 10°), 1 the 300 s runs
-        pessimistic (1.4 after the first minute); 0.5 is between.
     relinearize_threshold : float
         iSAM2 relinearisation threshold of the attitudes (rad) and the rates (rad/s).
     relinearize_threshold_inertia : float
@@ -90,7 +83,6 @@ class SmootherSettings:
     process_sigma_rate_rad_s: float = 1e-7
     gate_probability: float = 0.999
     huber_k: float = 3.0
-    registration_excess: float = 0.5
     relinearize_threshold: float = 1e-5
     relinearize_threshold_inertia: float = 1e-3
     relinearize_skip: int = 10
@@ -302,10 +294,10 @@ class AttitudeSmoother:
         with ``cov_N`` less the frames' shares ``Σ_k + ΔR Σ_j ΔRᵀ`` (kept positive definite: at
         least 10 % of ``cov_N`` in every direction); otherwise it joins the attitudes with
         ``cov_N``.  ``remainder_N``, when given, is that remainder computed by the caller from the
-        point subsets the registration used (:mod:`closed_loop.smoothing_loop` does), to which
-        ``settings.registration_excess × cov_N`` is added.  ``inflation`` multiplies the remainder (a closure shares its
-        keyframe's points with the keyframe's other closures, a correlation the graph does not
-        hold).  Call :meth:`gate` first; this adds unconditionally (Huber-robust).
+        point subsets the registration used (:mod:`closed_loop.smoothing_loop` does; with the
+        exact maximum-likelihood fit its residual against the truth has NEES 2.5–3.4,
+        docs/closed_loop.md).  ``inflation`` multiplies the remainder (a closure shares its keyframe's
+        points with the keyframe's other closures, a correlation the graph does not hold).  Call :meth:`gate` first; this adds unconditionally (Huber-robust).
         """
         dR = np.asarray(dR_N, float)
         cov = 0.5 * (np.asarray(cov_N, float) + np.asarray(cov_N, float).T)
@@ -313,7 +305,7 @@ class AttitudeSmoother:
             zero = np.zeros((3, 3))
             remainder, floor = cov - self._frame_cov.get(k, zero) - dR @ self._frame_cov.get(j, zero) @ dR.T, 0.1
         else:
-            remainder, floor = np.asarray(remainder_N, float) + self.settings.registration_excess * cov, 0.01
+            remainder, floor = np.asarray(remainder_N, float), 0.01
         m, V = np.linalg.eigh(cov)
         iso = np.diag(1.0 / np.sqrt(m)) @ V.T  # whitening of cov
         rm, rV = np.linalg.eigh(iso @ (0.5 * (remainder + remainder.T)) @ iso.T)
