@@ -10,6 +10,7 @@ names the configs use (``estimator.registration``).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,7 +20,12 @@ from closed_loop.evidence import Evidence, check_evidence, spread_information
 from closed_loop.frames import Frame
 from closed_loop.registry import Registry
 from filters import IncrementMeasurement
-from reconstruction.association import associate, associate_from_observations
+from reconstruction.association import (
+    Association,
+    associate,
+    associate_from_observations,
+    associate_observation_pairs,
+)
 from reconstruction.registration import RigidRegistration, fit_rigid, fit_rigid_ml, fit_rigid_robust
 
 __all__ = [
@@ -175,10 +181,9 @@ class Registrar(ABC):
             Never raises for bad data: a failed frame, association or fit is reported in
             ``ok`` / ``failure_reason``.
         """
-        if not prev.ok:
-            return RegistrationIncrement.failed(f"previous epoch: {prev.failure_reason}")
-        if not curr.ok:
-            return RegistrationIncrement.failed(f"this epoch: {curr.failure_reason}")
+        why = _frames_failure(prev, curr)
+        if why:
+            return RegistrationIncrement.failed(why)
         if view_agnostic:
             seen_p = (prev.tri.views_used & prev.tri.valid[:, None]).any(axis=1)[:, None]
             seen_c = (curr.tri.views_used & curr.tri.valid[:, None]).any(axis=1)[:, None]
@@ -187,6 +192,43 @@ class Registrar(ABC):
                               residual_next=curr.tri.rms_reprojection_px)
         else:
             assoc = associate_from_observations(prev.obs, curr.obs, prev.tri, curr.tri)
+        return self._fit_associated(prev, curr, assoc, rng=rng, with_covariance=with_covariance, R0=R0)
+
+    def register_pairs(self, frames: Sequence[Frame], pairs: Sequence[tuple[int, int]], *,
+                       rngs: Sequence[np.random.Generator], with_covariance: bool = True) -> list[RegistrationIncrement]:
+        """:meth:`register` for several pairs of frames, the associations of all of them in one pass
+        (:func:`reconstruction.association.associate_observation_pairs`; view by view).
+
+        Parameters
+        ----------
+        frames : sequence of closed_loop.frames.Frame
+            The epochs (e.g. every epoch of every trial of a cell).
+        pairs : sequence of (int, int)
+            ``(a, b)``: the increment from ``frames[a]`` to ``frames[b]``.
+        rngs : sequence of numpy.random.Generator
+            The registration stream of each pair; the fits run in the order of ``pairs``, so pairs
+            sharing a generator draw from it as consecutive :meth:`register` calls would.
+        with_covariance : bool
+            As in :meth:`register`.
+
+        Returns
+        -------
+        list of RegistrationIncrement
+            Result ``p`` equals ``register(frames[a], frames[b], rng=rngs[p], with_covariance=...)``.
+        """
+        why = [_frames_failure(frames[a], frames[b]) for a, b in pairs]
+        todo = [p for p, w in enumerate(why) if not w]
+        used = sorted({e for p in todo for e in pairs[p]})
+        at = {e: i for i, e in enumerate(used)}
+        assoc = associate_observation_pairs([frames[e].obs for e in used], [frames[e].tri for e in used],
+                                            [(at[pairs[p][0]], at[pairs[p][1]]) for p in todo])
+        assoc_of = dict(zip(todo, assoc, strict=True))
+        return [self._fit_associated(frames[a], frames[b], assoc_of[p], rng=rngs[p], with_covariance=with_covariance)
+                if p in assoc_of else RegistrationIncrement.failed(why[p]) for p, (a, b) in enumerate(pairs)]
+
+    def _fit_associated(self, prev: Frame, curr: Frame, assoc: Association, *, rng: np.random.Generator,
+                        with_covariance: bool, R0: np.ndarray | None = None) -> RegistrationIncrement:
+        """The fit, the evidence checks and the bookkeeping of :meth:`register` after the association."""
         k = int(assoc.idx_prev.size)
         if not assoc.ok:
             return RegistrationIncrement.failed(f"association: {assoc.failure_reason}", k)
@@ -206,6 +248,15 @@ class Registrar(ABC):
         inl = np.asarray(reg.inliers, dtype=bool)
         return RegistrationIncrement(R_H=reg.R, cov_rotvec_H=cov, n_matches=k, n_inliers=int(reg.n_inliers),
                                      ok=True, failure_reason="", inliers_prev=ip[inl], inliers_curr=iq[inl])
+
+
+def _frames_failure(prev: Frame, curr: Frame) -> str:
+    """Why two frames cannot be registered (a failed epoch), ``""`` when both are ok."""
+    if not prev.ok:
+        return f"previous epoch: {prev.failure_reason}"
+    if not curr.ok:
+        return f"this epoch: {curr.failure_reason}"
+    return ""
 
 
 @dataclass(frozen=True)

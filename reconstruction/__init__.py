@@ -16,6 +16,8 @@ if TYPE_CHECKING:
         Association,
         associate,
         associate_from_observations,
+        associate_observation_pairs,
+        associate_pairs,
         camera_weights_from_counts,
     )
     from reconstruction.registration import (
@@ -39,6 +41,8 @@ __all__ = [
     "Association",
     "associate",
     "associate_from_observations",
+    "associate_observation_pairs",
+    "associate_pairs",
     "camera_weights_from_counts",
     "RigidRegistration",
     "fit_rigid",
@@ -55,8 +59,8 @@ __all__ = [
 # does not load SciPy, Numba (the registration kernels) or, through them, Open3D and OpenCV
 __getattr__, __dir__, _ = lazy.attach(__name__, submod_attrs={
     "accuracy": ["AttitudeIncrementBound", "attitude_increment_crlb", "point_covariance"],
-    "association": ["Association", "associate", "associate_from_observations",
-                    "camera_weights_from_counts"],
+    "association": ["Association", "associate", "associate_from_observations", "associate_observation_pairs",
+                    "associate_pairs", "camera_weights_from_counts"],
     "registration": ["RigidRegistration", "fit_rigid", "fit_rigid_ml", "fit_rigid_robust",
                      "register_fpfh_ransac", "register_icp"],
     "triangulation": ["Triangulation", "triangulate", "triangulate_from_observation"],

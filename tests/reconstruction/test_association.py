@@ -181,3 +181,88 @@ def test_vectorised_association_equals_a_per_track_knnmatch_reference(per_view):
         np.testing.assert_array_equal(a.n_per_primary, counts)
         n_conflicts += a.n_conflicts_removed
     assert n_conflicts > 0  # the merge rules were exercised
+
+
+def test_pairs_of_epochs_associated_together_equal_one_call_per_pair():
+    """associate_pairs over epochs with one descriptor per track, per view, or mixed, with points
+    and residuals (near duplicates included) and an epoch in two pairs: each result equals
+    associate() on its pair alone, field by field."""
+    from reconstruction.association import associate_pairs
+
+    rng = np.random.default_rng(8)
+    n, D = 3, 16
+    views, descs, X, res = [], [], [], []
+    base = rng.standard_normal((90, D)).astype(np.float32)
+    X_base = rng.uniform(-0.3, 0.3, (90, 3))
+    X_base[1::2] = X_base[::2] + 0.01  # pairs of near-duplicate surface points
+    for e in range(6):
+        M = int(rng.integers(20, 90))
+        ids = rng.permutation(90)[:M]
+        d = base[ids] + 0.05 * rng.standard_normal((M, D)).astype(np.float32)
+        if e in (2, 3):
+            d = d[:, None] + 0.1 * rng.standard_normal((M, n, D)).astype(np.float32)
+        views.append(rng.random((M, n)) < 0.8)
+        descs.append(d)
+        x = X_base[ids] + 1e-3 * e
+        x[rng.random(M) < 0.1] = np.nan
+        X.append(x)
+        res.append(rng.uniform(0.1, 1.0, M))
+    res[4] = None
+    pairs = [(0, 1), (1, 2), (2, 3), (3, 4), (4, 5), (5, 0), (1, 4)]
+    many = associate_pairs(views, descs, pairs, X=X, residual=res, duplicate_distance_m=0.05)
+    n_dup = 0
+    for (a, b), got in zip(pairs, many, strict=True):
+        one = associate(views[a], descs[a], views[b], descs[b], X_prev=X[a], X_next=X[b],
+                        residual_prev=res[a], residual_next=res[b], duplicate_distance_m=0.05)
+        np.testing.assert_array_equal(got.idx_prev, one.idx_prev)
+        np.testing.assert_array_equal(got.idx_next, one.idx_next)
+        np.testing.assert_array_equal(got.n_per_primary, one.n_per_primary)
+        np.testing.assert_array_equal(got.camera_weights, one.camera_weights)
+        assert (got.n_conflicts_removed, got.n_duplicates_removed, got.ok, got.failure_reason) == \
+               (one.n_conflicts_removed, one.n_duplicates_removed, one.ok, one.failure_reason)
+        n_dup += got.n_duplicates_removed
+    assert n_dup > 0 and sum(len(a.idx_prev) for a in many) > 100
+
+
+def test_knn_kernel_equals_an_exact_reference_with_ties_and_crowded_candidates():
+    """reconstruction._knn_kernel.knn_l2 against a double-precision brute force: same neighbours in
+    (distance, index) order, distances to rounding; exact duplicates (ties) and a crowd of equidistant
+    references (the float32 pass cannot separate them: the exact re-search) included."""
+    from reconstruction._knn_kernel import knn_l2
+
+    rng = np.random.default_rng(9)
+    for case in range(40):
+        M, N, D = int(rng.integers(1, 40)), int(rng.integers(1, 70)), int(rng.choice([3, 16, 128]))
+        A = rng.standard_normal((M, D)).astype(np.float32)
+        B = rng.standard_normal((N, D)).astype(np.float32)
+        if N > 20 and case % 2:
+            B[:20] = B[0]  # twenty equal references
+            A[0] = B[0] + 1e-3
+        k = int(rng.integers(1, 12))
+        dist, idx = knn_l2(A, B, k)
+        d2 = np.sum((A[:, None, :].astype(float) - B[None].astype(float)) ** 2, -1)
+        ref = np.lexsort((np.broadcast_to(np.arange(N), d2.shape), np.round(d2, 9)), axis=-1)[:, :k]
+        kk = min(k, N)
+        np.testing.assert_array_equal(idx[:, :kk], ref[:, :kk])
+        np.testing.assert_allclose(dist[:, :kk], np.sqrt(np.take_along_axis(d2, ref[:, :kk], 1)), rtol=1e-12)
+        assert np.all(idx[:, kk:] == -1) and np.all(np.isinf(dist[:, kk:]))
+
+
+def test_duplicate_removal_in_array_operations_equals_the_sequential_pass():
+    """_greedy_keep (layer by layer) keeps the points the sequential pass in order of quality keeps."""
+    from reconstruction.association import _greedy_keep
+
+    rng = np.random.default_rng(10)
+    for _ in range(50):
+        N = int(rng.integers(2, 60))
+        close = rng.integers(0, N, (int(rng.integers(0, 3 * N)), 2))
+        close = close[close[:, 0] != close[:, 1]]
+        rank = rng.permutation(N)
+        keep = np.ones(N, bool)
+        for k in np.argsort(rank):  # the sequential pass
+            if keep[k]:
+                for a, b in close:
+                    other = b if a == k else a if b == k else -1
+                    if other >= 0 and rank[other] > rank[k]:
+                        keep[other] = False
+        np.testing.assert_array_equal(_greedy_keep(rank, close), keep)

@@ -124,13 +124,16 @@ def error_map_trials(cfg: Config, seeds: Sequence[np.random.SeedSequence]) -> di
         batch = range(t0, min(M, t0 + _TRIALS_PER_BATCH))
         frames_of = _observed_frames(observer, T_CW, qs_all[batch.start:batch.stop], sun,
                                      [streams[t][1] for t in batch])
-        for t, frames in zip(batch, frames_of, strict=True):
-            _register_trial(registrar, frames, qs_all[t], dq, dR, dtheta, T_CW, streams[t][2], out, reasons, t)
+        incs_of = _registered_steps(registrar, frames_of, [streams[t][2] for t in batch])
+        for t, frames, incs in zip(batch, frames_of, incs_of, strict=True):
+            out["crlb_deg"][t] = _crlb_deg(frames[0], frames[1], qs_all[t, 0], dq, T_CW)
+            _trial_metrics(incs, [f.obs.n_tracks for f in frames], dR, dtheta, out, reasons, t)
     out["failure_reason"] = reasons
     return out
 
 
-#: trials observed and triangulated together (the calibrated geometric mode batches their ray casting)
+#: trials observed, triangulated and registered together (the calibrated geometric mode batches their
+#: ray casting; the associations of all their steps run in one pass)
 _TRIALS_PER_BATCH = 20
 
 
@@ -156,18 +159,35 @@ def _observed_frames(observer, T_CW: np.ndarray, qs: np.ndarray, sun_H: np.ndarr
     return [flat[r * E:(r + 1) * E] for r in range(R)]
 
 
-def _register_trial(registrar, frames: list[Frame], qs: np.ndarray, dq: np.ndarray, dR: np.ndarray,
-                    dtheta: np.ndarray, T_CW: np.ndarray, s_reg: np.random.SeedSequence,
-                    out: dict[str, np.ndarray], reasons: np.ndarray, t: int) -> None:
-    """Register the steps of trial ``t`` and write its row of ``out`` / ``reasons``."""
-    steps = len(frames) - 1
-    reg_rng = np.random.default_rng(s_reg)
+def _registered_steps(registrar, frames_of: list[list[Frame]],
+                      reg_seeds: Sequence[np.random.SeedSequence]) -> list[list]:
+    """The increments of every step of R trials (``frames_of[r]``: trial r's epochs), registered with
+    one :meth:`closed_loop.registrars.Registrar.register_pairs` call (the associations of all the
+    steps in one pass; the fits trial by trial, step by step, each trial from its own stream
+    ``reg_seeds[r]``, as :meth:`~closed_loop.registrars.Registrar.register` step by step would give)."""
+    flat = [f for frames in frames_of for f in frames]
+    pairs, rngs, start = [], [], 0
+    for frames, s_reg in zip(frames_of, reg_seeds, strict=True):
+        rng = np.random.default_rng(s_reg)
+        pairs += [(start + k - 1, start + k) for k in range(1, len(frames))]
+        rngs += [rng] * (len(frames) - 1)
+        start += len(frames)
+    incs = registrar.register_pairs(flat, pairs, rngs=rngs, with_covariance=False)
+    out, start = [], 0
+    for frames in frames_of:
+        out.append(incs[start:start + len(frames) - 1])
+        start += len(frames) - 1
+    return out
+
+
+def _trial_metrics(incs: list, tracks: list[int], dR: np.ndarray, dtheta: np.ndarray,
+                   out: dict[str, np.ndarray], reasons: np.ndarray, t: int) -> None:
+    """Write row ``t`` of ``out`` / ``reasons`` from the trial's step increments ``incs`` and its
+    tracks per epoch."""
+    steps = len(incs)
     est, errs, inliers, matches = [], [], [], []
-    tracks = [f.obs.n_tracks for f in frames]
-    out["crlb_deg"][t] = _crlb_deg(frames[0], frames[1], qs[0], dq, T_CW)
     why = ""
-    for k in range(1, steps + 1):
-        inc = registrar.register(frames[k - 1], frames[k], rng=reg_rng, with_covariance=False)
+    for inc in incs:
         matches.append(inc.n_matches)
         if inc.ok:
             inliers.append(inc.n_inliers)
