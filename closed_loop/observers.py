@@ -124,6 +124,14 @@ def _surface_features(target: Target, n_features: int, surface: str = "all"):
     return surface_features(target, n_features=n_features, surface=surface)
 
 
+@functools.lru_cache(maxsize=8)
+def _site_features(target: Target, footprint_m_per_px: float, n_fillers: int):
+    from vision.texture_sites import site_features
+
+    fillers = _surface_features(target, n_fillers, "outer") if n_fillers > 0 else None
+    return site_features(target, footprint_m_per_px, fillers=fillers)
+
+
 @dataclass(frozen=True)
 class GeometricObserver(Observer):
     """Surface features projected with noise, occlusion and false matches (:mod:`vision.geometric`).
@@ -143,6 +151,10 @@ class GeometricObserver(Observer):
         ``"fixed"``: ``pixel_sigma_px`` and ``false_match_fraction``; ``"calibrated"``: detection,
         σ per keypoint size, match and association survival and false rates as measured on rendered
         images (:mod:`vision.geometric_calibrated`).
+    calibrated_features : str
+        Where the calibrated model's features lie: ``"texture"`` (default) on the SIFT keypoint sites
+        of the target's textures at the cameras' image footprint (:mod:`vision.texture_sites`),
+        ``"uniform"`` spread uniformly by area over the outer surface (the model before the sites).
     """
 
     camera: PinholeCamera
@@ -151,6 +163,7 @@ class GeometricObserver(Observer):
     false_match_fraction: float = 0.02
     n_features: int = 2000
     noise_model: str = "fixed"
+    calibrated_features: str = "texture"
 
     def observe(self, T_CW: np.ndarray, q_HT: np.ndarray, sun_H: np.ndarray, *, rng: np.random.Generator,
                 sun_visible_fraction: float = 1.0) -> Observation:
@@ -198,10 +211,28 @@ class GeometricObserver(Observer):
                               noise_model=self.noise_model)
 
     def _features(self, T_CW: np.ndarray):
-        """The surface features the poses ``T_CW (..., 4, 4)`` need: ``n_features`` over the whole surface, or
-        with the calibrated model as many as its densest bin asks on the outer surface (:mod:`vision.outer_surface`)."""
+        """The surface features the poses ``T_CW (..., 4, 4)`` need: ``n_features`` over the whole surface;
+        with the calibrated model the texture sites at the poses' median image footprint (distance to the
+        target's centre over the focal length, :func:`vision.texture_sites.site_features`) and the uniform
+        fillers they need (:func:`vision.geometric_calibrated.filler_feature_count`), or with
+        ``calibrated_features="uniform"`` as many as its densest bin asks on the outer surface
+        (:mod:`vision.outer_surface`)."""
         if self.noise_model != "calibrated":
             return _surface_features(self.target, int(self.n_features), "all")
+        if self.calibrated_features == "texture":
+            from vision.texture_sites import footprint_level
+
+            T = np.asarray(T_CW, dtype=float)
+            distance_m = np.linalg.norm(np.einsum("...ji,...j->...i", T[..., :3, :3], T[..., :3, 3]), axis=-1)
+            f_px = float(np.sqrt(self.camera.K[0, 0] * self.camera.K[1, 1]))
+            level = footprint_level(float(np.median(distance_m)) / f_px)
+            from vision.geometric_calibrated import filler_feature_count
+            from vision.texture_sites import texture_sites
+
+            n_fill = filler_feature_count(self.camera, self.target, T, texture_sites(self.target, level))
+            return _site_features(self.target, level, n_fill)
+        if self.calibrated_features != "uniform":
+            raise ValueError(f"calibrated_features must be 'texture' or 'uniform', got {self.calibrated_features!r}")
         from vision.geometric_calibrated import calibrated_feature_count
 
         n = max(int(self.n_features), calibrated_feature_count(self.camera, self.target, np.asarray(T_CW)))

@@ -77,6 +77,10 @@ class SurfaceFeatures:
     area_m2 : float
         Area of the surface the features were sampled on, m² (the whole mesh, or its outer surface:
         :mod:`vision.outer_surface`); NaN when not known (then the mesh's).
+    sites : vision.texture_sites.TextureSites or None
+        The texture keypoint sites the features are (:func:`vision.texture_sites.site_features`):
+        the calibrated mode then detects them by response rank and takes their sizes; None for
+        features spread uniformly by area.
     """
 
     X_T: np.ndarray
@@ -85,6 +89,7 @@ class SurfaceFeatures:
     descriptors: np.ndarray
     triangle_id: np.ndarray
     area_m2: float = float("nan")
+    sites: object = None
 
     def __len__(self) -> int:
         return int(len(self.X_T))

@@ -48,7 +48,7 @@ from vision.observation import (
 from vision.outer_surface import outer_surface_area_m2
 from vision.target import Target
 
-__all__ = ["calibrated_feature_count", "pair_copula_correlation", "temporal_correlation", "observe_epochs_calibrated",
+__all__ = ["calibrated_feature_count", "detections", "filler_feature_count", "pair_copula_correlation", "temporal_correlation", "observe_epochs_calibrated",
            "observe_trials_calibrated"]
 
 #: margin on the largest measured density when sizing the feature set
@@ -68,6 +68,29 @@ def calibrated_feature_count(camera: PinholeCamera, target: Target, T_CW: np.nda
     rho = cal.max_density(z_min / f)
     n = int(math.ceil(_DENSITY_MARGIN * rho * outer_surface_area_m2(target)))
     return min(max(n, 1), _MAX_FEATURES)
+
+
+def filler_feature_count(camera: PinholeCamera, target: Target, T_CW: np.ndarray, sites,
+                         calibration: SiftCalibration | None = None) -> int:
+    """Uniform filler features (outer surface) that the texture sites ``sites`` need beside them: enough
+    that the largest excess of a material's measured density at the closest camera over its site
+    density is reachable (0 where the sites cover every bin)."""
+    from vision.calibration import COS_VIEW_EDGES, SUN_BIN_EDGES
+
+    cal = calibration if calibration is not None else load_calibration(target.name)
+    T = np.asarray(T_CW, dtype=float).reshape(-1, 4, 4)
+    c = -np.einsum("kji,kj->ki", T[:, :3, :3], T[:, :3, 3])
+    d = np.linalg.norm(c, axis=1)
+    z_min = max(float(np.min(d)) - target.radius_m, 0.5 * float(np.min(d)))
+    fp = z_min / float(np.sqrt(camera.K[0, 0] * camera.K[1, 1]))
+    P = len(target.materials)
+    cos_v = 0.5 * (COS_VIEW_EDGES[:-1] + np.minimum(COS_VIEW_EDGES[1:], 1.0))
+    v_g, s_g, m_g = np.meshgrid(cos_v, np.arange(len(SUN_BIN_EDGES) - 1), np.arange(P), indexing="ij")
+    mat = m_g if cal.material_factor.shape[1] == P else None
+    per_material = np.max(cal.density(np.full(v_g.shape, fp), v_g, s_g, mat), axis=(0, 1))
+    excess = float(np.max(np.maximum(per_material - sites.density_by_material, 0.0)))
+    n = int(math.ceil(_DENSITY_MARGIN * excess * outer_surface_area_m2(target)))
+    return min(n, _MAX_FEATURES)
 
 
 def _three_over_two(rho: float, s: float) -> float:
@@ -184,27 +207,83 @@ def observe_trials_calibrated(cams, T, target, q, sun, fsun, feats, rngs, *, cal
     """
     del batch_size
     cal = calibration if calibration is not None else load_calibration(target.name)
-    R, E, n = T.shape[:3]
+    st = _setup(cams, T, target, feats, cal, rngs)
+    out: list[list[Observation]] = []
+    for r in range(len(rngs)):
+        keep, g, fp = _detect_trial(st, r, cams, T[r], q[r], sun[r], fsun[r], feats, target, cal, margin_px)
+        out.append(_trial(g, fp, keep, T[r], fsun[r], feats, cal, rngs[r], target=target, cams=cams,
+                          min_views=min_views, descriptor_noise=descriptor_noise, margin_px=margin_px))
+    return out
+
+
+def detections(cams, T, target, q, sun, fsun, feats, rng, *, calibration=None, margin_px: float = 0.0):
+    """The detection step alone for one trial (the same draws as :func:`observe_trials_calibrated`):
+    the indices ``keep`` of the features that can be detected and their detections ``vis (E, n, len(keep))``."""
+    cal = calibration if calibration is not None else load_calibration(target.name)
+    st = _setup(cams, T[None], target, feats, cal, [rng])
+    keep, g, _ = _detect_trial(st, 0, cams, T, q, sun, fsun, feats, target, cal, margin_px)
+    return keep, g.vis
+
+
+def _setup(cams, T, target, feats, cal, rngs) -> dict:
+    """Per-feature densities, detection uniforms ``(R, N)`` and their bound of the trials ``T (R, E, n, 4, 4)``."""
     N = len(feats)
     area_m2 = feats.area_m2 if np.isfinite(feats.area_m2) else float(target.triangle_areas_m2.sum())
     rho_F = N / area_m2
     material = target.triangle_material[feats.triangle_id] if cal.material_factor.shape[1] == len(target.materials) \
         else None
     f_px = np.array([math.sqrt(c.K[0, 0] * c.K[1, 1]) for c in cams])
-    u_det = np.stack([r.random(N) for r in rngs])                         # (R, N), one per feature and trial
+    rho_sub = 0.0                                                         # density left to others, per m²
+    is_site = np.zeros(N, dtype=bool)
+    if feats.sites is not None:
+        # texture sites first (their material's site density), then uniform fillers that carry what
+        # a bin's measured density asks beyond the sites of its material
+        Ns = len(feats.sites)
+        is_site[:Ns] = True
+        mat_all = target.triangle_material[feats.triangle_id]
+        rho_F = np.where(is_site, np.maximum(feats.sites.density_by_material[mat_all], 1e-9), max(N - Ns, 1) / area_m2)
+        rho_sub = np.where(is_site, 0.0, feats.sites.density_by_material[mat_all])
+        u_det = np.stack([np.concatenate([_site_uniforms(feats.sites.detection_rank, r), r.random(N - Ns)])
+                          for r in rngs])
+    else:
+        u_det = np.stack([r.random(N) for r in rngs])                     # (R, N), one per feature and trial
     c_dist = np.linalg.norm(np.einsum("...ji,...j->...i", T[..., :3, :3], T[..., :3, 3]), axis=-1)  # (R, E, n)
     fp_lo = max(float(np.min(c_dist)) - target.radius_m, 1e-3) / float(np.max(f_px))
     fp_hi = (float(np.max(c_dist)) + target.radius_m) / float(np.min(f_px))
-    bound = _detection_bound(cal, fp_lo, fp_hi, material) / rho_F       # (N,)
-    out: list[list[Observation]] = []
-    for r in range(R):
-        keep = np.flatnonzero(u_det[r] < bound)
-        sub = _subset(feats, keep)
-        g, fp = _detect(cams, T[r], q[r], sun[r], fsun[r], sub, target, cal, u_det[r, keep],
-                        None if material is None else material[keep], rho_F, f_px, margin_px)
-        out.append(_trial(g, fp, keep, T[r], fsun[r], feats, cal, rngs[r], target=target, cams=cams,
-                          min_views=min_views, descriptor_noise=descriptor_noise, margin_px=margin_px))
-    return out
+    bound = (_detection_bound(cal, fp_lo, fp_hi, material) - rho_sub) / rho_F   # (N,)
+    return {"u_det": u_det, "bound": bound, "rho_F": rho_F, "rho_sub": rho_sub, "is_site": is_site,
+            "material": material, "f_px": f_px}
+
+
+def _detect_trial(st: dict, r: int, cams, T, q, sun, fsun, feats, target, cal, margin_px):
+    """Trial r's features that can be detected, their geometry with detections and footprints (:func:`_detect`)."""
+    keep = np.flatnonzero(st["u_det"][r] < st["bound"])
+    rho_F, rho_sub, material = st["rho_F"], st["rho_sub"], st["material"]
+    g, fp = _detect(cams, T, q, sun, fsun, _subset(feats, keep), target, cal, st["u_det"][r, keep],
+                    None if material is None else material[keep], rho_F if np.ndim(rho_F) == 0 else rho_F[keep],
+                    st["f_px"], margin_px, rho_sub=rho_sub if np.ndim(rho_sub) == 0 else rho_sub[keep],
+                    is_site=st["is_site"][keep])
+    return keep, g, fp
+
+
+#: correlation (Gaussian copula) between a texture site's detection uniform and its response rank
+#: among the sites of its material: 1 would detect the sites strictly strongest first in every bin
+#: and trial, 0 at random; a choice (not measured): the response on a rendered image also depends
+#: on the shading and the view, so the order is kept loosely
+SITE_RANK_CORRELATION = 0.8
+#: smallest foreshortened diameter (diameter times the cosine of the view angle) of a texture site's
+#: keypoint in an image, px: a texture blob narrower than a pixel across is averaged away (surfaces
+#: seen edge-on, such as a solar wing at grazing view, keep only their largest sites)
+MIN_FORESHORTENED_PX = 1.0
+
+
+def _site_uniforms(detection_rank: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Detection uniforms ``(N,)`` of texture sites: uniform over a material's sites (its ranks are
+    uniform), small for strong sites through a Gaussian copula of correlation :data:`SITE_RANK_CORRELATION`,
+    so that a bin's measured density is reached with the strongest sites first."""
+    r = SITE_RANK_CORRELATION
+    z = math.sqrt(r) * ndtri(np.clip(detection_rank, 1e-12, 1 - 1e-12)) + math.sqrt(1.0 - r) * rng.standard_normal(len(detection_rank))
+    return ndtr(z)
 
 
 def _detection_bound(cal: SiftCalibration, fp_lo: float, fp_hi: float, material: np.ndarray | None) -> np.ndarray:
@@ -237,22 +316,32 @@ def _subset(feats, keep: np.ndarray):
                            feats.triangle_id[keep], feats.area_m2)
 
 
-def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f_px, margin_px):
+def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f_px, margin_px, rho_sub=0.0,
+            is_site=None):
     """Projection, visibility and detection of one trial's epochs: the geometry (``vis`` the detections)
-    and the footprints ``(E, n, N)``, m/px."""
+    and the footprints ``(E, n, N)``, m/px.  A feature is detected with probability ``(ρ − rho_sub) / rho_F``
+    (ρ the measured density of its bin; ``rho_sub`` the density other features carry: the sites of
+    its material, for a filler); the texture sites (``is_site``) only where their foreshortened
+    diameter is at least :data:`MIN_FORESHORTENED_PX`."""
     from vision.geometric import _geometry, _occlude, _sun_T
 
     # every surface facing a camera counts, lit or not: keypoints on shadowed or unlit surfaces
     # (shadow edges, silhouettes against lit parts) are measured as their own Sun bin
     g = _geometry(cams, T, q, sun, fsun, feats, min_feature_px=0.0, cos_view=0.0, cos_sun=-2.0, margin_px=margin_px)
     fp = g.z / f_px[None, :, None]                                        # (E, n, N) m/px
+    if is_site is not None and is_site.any():
+        # a site is seen where its foreshortened diameter reaches MIN_FORESHORTENED_PX (not
+        # renormalised: the density a bin measured at grazing view comes mostly from silhouettes and
+        # the edges between faces, not from the texture of the grazing surface)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            g.vis &= ~is_site | (feats.scale_m[None, None, :] * np.abs(g.cos_view) / fp >= MIN_FORESHORTENED_PX)
     side = np.where(g.cos_view >= 0, 1.0, -1.0)
     can_lit = side * g.cos_sun > 0
     u = u_det[None, None, :]
     with np.errstate(invalid="ignore", divide="ignore"):
         fp_ok = np.where(g.vis, fp, 1.0)
-        p_lit = cal.density(fp_ok, g.cos_view, cal.sun_bin(side * g.cos_sun, can_lit), material) / rho_F
-        p_dark = cal.density(fp_ok, g.cos_view, np.zeros(fp.shape, dtype=int), material) / rho_F
+        p_lit = (cal.density(fp_ok, g.cos_view, cal.sun_bin(side * g.cos_sun, can_lit), material) - rho_sub) / rho_F
+        p_dark = (cal.density(fp_ok, g.cos_view, np.zeros(fp.shape, dtype=int), material) - rho_sub) / rho_F
     # features above both detection probabilities are not detected whatever the ray casting gives:
     # cast rays only for the others (the shadow of a feature decides only its own lit flag)
     g.vis &= u < np.maximum(p_lit, p_dark)
@@ -319,6 +408,10 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
             fp_f = np.where(n_det > 0, np.sum(np.where(det, fp_c[k].T, 0.0), axis=1) / n_det, np.nan)  # (C,)
         two = np.nonzero(n_det >= 2)[0]
         S = cal.pair_survival_at(np.nan_to_num(fp_f[two], nan=1.0)[:, None, None], ang[None])
+        if feats.sites is not None:                                       # distinct sites match more often
+            site = cand_id[two] < len(feats.sites)
+            S = np.where(site[:, None, None], feats.sites.pair_survival(
+                S, np.minimum(cand_id[two], len(feats.sites) - 1)[:, None, None]), S)
         # the pair matches are re-decided every epoch, correlated with the previous epoch's as
         # measured (track persistence) and between the pairs of one feature (3-view/2-view ratio)
         if not first:
@@ -363,6 +456,8 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         uv_e = np.swapaxes(g.uv[k][:, loc], 0, 1).copy()                  # (M, n, 2)
         fp_m = fp_c[k][:, fid].T                                          # (M, n)
         size_px = cal.size_px(fp_m, np.broadcast_to(v_size[fid, None], (M, n)))
+        if feats.sites is not None:                                       # a site's SIFT diameter at this footprint
+            size_px = np.where((gid < len(feats.sites))[:, None], feats.scale_m[gid][:, None] / fp_m, size_px)
         sig = cal.sigma_for_size(size_px, fp_m)
         uv_e += sig[..., None] * rng.standard_normal(uv_e.shape)
         uv_e[~seen] = np.nan
