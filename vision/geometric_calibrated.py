@@ -16,9 +16,14 @@ silhouettes).  Then, with the statistics of :mod:`vision.calibration` measured o
    re-decided every epoch, the copula variables an AR(1) process over the epochs whose correlation
    gives the measured track persistence (on rendered images only about half of the tracks of one
    epoch are tracks again 1° later: the ratio test is decided anew in every image pair).
-3. **Localisation**: every (track, view) gets a keypoint size (quantile ``v_f`` of the measured size
-   distribution of tracked keypoints at its image scale, one ``v_f`` per feature) and the measured
-   σ of that size at that image scale; the projection gets Gaussian noise of that σ, carried as ``track_sigma_px``.
+3. **Localisation**: every (track, view) gets a keypoint size (a texture site's own SIFT diameter at
+   the view's image scale, :mod:`vision.texture_sites`; for other features the quantile ``v_f`` of the
+   measured size distribution of tracked keypoints at its image scale, one ``v_f`` per feature), the
+   measured σ of that size at that image scale times the square root of the measured σ² inflation of
+   the track's class and camera angle (``SiftCalibration.sigma_inflation``, as the rendered mode's
+   ``track_sigma_px``), carried as ``track_sigma_px``.  The projection's Gaussian error has that σ; the
+   part the measured *increment* inflation leaves (what cancels between epochs on rendered images)
+   is the feature's own in that view for the whole trial, the rest is drawn anew every epoch.
 4. **False matches** at the measured cross-view rate, made as in the fixed model (a wrong point on
    the first view's ray: epipolar-consistent).
 5. **Association between epochs**: each feature keeps its descriptor from epoch to epoch with the
@@ -37,7 +42,7 @@ import math
 import numpy as np
 from scipy.special import ndtr, ndtri
 
-from vision.calibration import SiftCalibration, load_calibration
+from vision.calibration import SiftCalibration, load_calibration, track_class
 from vision.camera import PinholeCamera
 from vision.observation import (
     REASON_EARTH_SHADOW,
@@ -382,6 +387,7 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
     fp_c = fp[:, :, cand]
     cand_id = ids[cand]                                                   # their indices in feats
     v_size = rng.random(C)
+    e_kept = rng.standard_normal((C, n, 2))                               # each feature's error kept per view
     rho_c, rho_t = _calibration_correlations(cal)
     # copula variables of every candidate's view pairs: a common factor and one per pair, each an
     # AR(1) process over the epochs of the trial with correlation rho_t
@@ -458,8 +464,19 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         size_px = cal.size_px(fp_m, np.broadcast_to(v_size[fid, None], (M, n)))
         if feats.sites is not None:                                       # a site's SIFT diameter at this footprint
             size_px = np.where((gid < len(feats.sites))[:, None], feats.scale_m[gid][:, None] / fp_m, size_px)
-        sig = cal.sigma_for_size(size_px, fp_m)
-        uv_e += sig[..., None] * rng.standard_normal(uv_e.shape)
+        # σ of the size times the measured σ² inflation of the track's class and camera angle (as the
+        # rendered mode's Observation.track_sigma_px); the part of the error that does not cancel in
+        # an increment (the increment inflation) is drawn anew, the rest is the feature's own in
+        # that view for the whole trial
+        sig_size = cal.sigma_for_size(size_px, fp_m)
+        both = seen[:, :, None] & seen[:, None, :]
+        angle = np.max(np.where(both, ang[None], 0.0), axis=(1, 2))
+        cls = track_class(seen.sum(axis=1), n)[:, None]
+        infl = cal.sigma_inflation(fp_m, angle[:, None], cls)
+        infl_inc = np.minimum(cal.sigma_inflation(fp_m, angle[:, None], cls, increment=True), infl)
+        sig = sig_size * np.sqrt(infl)
+        uv_e += sig_size[..., None] * (np.sqrt(infl - infl_inc)[..., None] * e_kept[fid]
+                                       + np.sqrt(infl_inc)[..., None] * rng.standard_normal(uv_e.shape))
         uv_e[~seen] = np.nan
         desc = _descriptors(state[fid], feats, extra, rng)
         if descriptor_noise > 0:

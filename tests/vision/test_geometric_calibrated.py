@@ -6,7 +6,7 @@ from scipy.special import ndtr
 
 from attitude.quaternion import matrix_from_quat, quat_from_rotvec, quat_multiply, quat_normalize
 from tests.vision.geometric_three_cameras import three_cameras
-from vision.calibration import load_calibration
+from vision.calibration import load_calibration, track_class
 from vision.camera import PinholeCamera
 from vision.geometric import observe_epochs, surface_features
 from vision.geometric_calibrated import (
@@ -32,7 +32,8 @@ def _trial(target, T, E, step_deg, seed):
 
 
 def test_pixel_noise_has_the_calibrated_sigma_of_each_keypoint_size(fy1):
-    """(uv − true projection) / track σ is unit normal per axis over the correct tracks."""
+    """Track σ = size σ × √(σ² inflation of the track's class and angle), and (uv − true projection) / track σ
+    is unit normal per axis over the correct tracks."""
     T = three_cameras(40.0, 10.0)
     q, obs = _trial(fy1, T, 6, 0.87, 1)
     cal = load_calibration("fy1")
@@ -42,7 +43,14 @@ def test_pixel_noise_has_the_calibrated_sigma_of_each_keypoint_size(fy1):
         X_H = o.X_T_true[good] @ matrix_from_quat(qk).T
         z = np.stack([(X_H @ T[i, :3, :3].T + T[i, :3, 3])[:, 2] for i in range(3)], axis=1)   # depth, m
         sg = o.seen[good]
-        expected = cal.sigma_for_size(o.keypoint_size_px[good], z / CAM.K[0, 0])
+        seen = o.seen[good]
+        both = seen[:, :, None] & seen[:, None, :]
+        c = np.stack([-T[i, :3, :3].T @ T[i, :3, 3] for i in range(3)])
+        c /= np.linalg.norm(c, axis=1, keepdims=True)
+        pair = np.degrees(np.arccos(np.clip(c @ c.T, -1.0, 1.0)))
+        angle = np.max(np.where(both, pair[None], 0.0), axis=(1, 2))[:, None]
+        infl = cal.sigma_inflation(z / CAM.K[0, 0], angle, track_class(seen.sum(axis=1), 3)[:, None])
+        expected = cal.sigma_for_size(o.keypoint_size_px[good], z / CAM.K[0, 0]) * np.sqrt(infl)
         np.testing.assert_allclose(o.track_sigma_px[good][sg], expected[sg], rtol=1e-9)
         for i in range(3):
             s = o.seen[good, i]

@@ -142,3 +142,50 @@ def test_the_measured_density_is_honoured_on_average(plate, distance_m):
         n_det.append(int(np.sum(vis[0, 0] & front[keep])))
     expected = float(cal.density(fp, 1.0, cal.sun_bin(1.0, True))) * 4.0   # 2 m × 2 m face
     assert np.mean(n_det) == pytest.approx(expected, rel=0.1)
+
+
+def test_a_feature_keeps_the_measured_share_of_its_error_between_epochs(fy1):
+    """The pixel errors of a feature in one view at consecutive epochs correlate as the calibration's
+    σ² inflations say: (triangulation − increment inflation) / triangulation inflation."""
+    from attitude.quaternion import (
+        matrix_from_quat,
+        quat_from_rotvec,
+        quat_multiply,
+        quat_normalize,
+    )
+    from tests.vision.geometric_three_cameras import three_cameras
+    from vision.calibration import track_class
+    from vision.geometric import observe_epochs
+
+    cal = load_calibration("fy1")
+    T = three_cameras(40.0, 10.0)
+    E = 16
+    dq = quat_from_rotvec(np.radians(0.5) * np.ones(3) / np.sqrt(3))
+    q = [quat_normalize(np.array([0.3, -0.5, 0.7, 0.4]))]
+    for _ in range(E - 1):
+        q.append(quat_normalize(quat_multiply(dq, q[-1])))
+    feats = site_features(fy1, FP_40M)
+    obs = observe_epochs(CAM, np.broadcast_to(T, (E, *T.shape)), fy1, np.array(q), np.broadcast_to(
+        np.array([1.0, -0.5, 0.6]) / np.linalg.norm([1.0, -0.5, 0.6]), (E, 3)), rng=5, features=feats,
+        noise_model="calibrated")
+    res = []
+    for o, qk in zip(obs, q, strict=True):
+        good = o.feature_id >= 0
+        X_H = o.X_T_true[good] @ matrix_from_quat(qk).T
+        r = np.full((good.sum(), 3, 2), np.nan)
+        for i in range(3):
+            uv, _ = CAM.project_world(X_H, T[i])
+            r[:, i] = (o.uv_px[good][:, i] - uv) / o.track_sigma_px[good][:, i, None]
+        res.append(dict(zip(o.feature_id[good], r, strict=True)))
+    a, b = [], []
+    for r0, r1 in zip(res[:-1], res[1:], strict=True):
+        for f in set(r0) & set(r1):
+            ok = np.isfinite(r0[f]).all(axis=1) & np.isfinite(r1[f]).all(axis=1)
+            a.append(r0[f][ok].ravel())
+            b.append(r1[f][ok].ravel())
+    a, b = np.concatenate(a), np.concatenate(b)
+    assert a.size > 1000
+    fp = 40.0 / CAM.K[0, 0]
+    cls = track_class(np.array([2, 3]), 3)
+    kept = [1.0 - cal.sigma_inflation(fp, 10.0, c, increment=True) / cal.sigma_inflation(fp, 10.0, c) for c in cls]
+    assert np.corrcoef(a, b)[0, 1] == pytest.approx(float(np.mean(kept)), abs=0.1)
