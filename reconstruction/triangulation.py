@@ -146,18 +146,31 @@ def _solve(uv: np.ndarray, w: np.ndarray, K: np.ndarray, T: np.ndarray, Kinv: np
     Xh = vecs[..., :, 0] / col
     with np.errstate(divide="ignore", invalid="ignore"):
         X = Xh[..., :3] / Xh[..., 3:4]
-    # --- Gauss–Newton on the reprojection error (pixels)
+    # --- Gauss–Newton on the reprojection error (pixels), each point until its own step is below
+    # 1e-9 (1 + |X|): only the points still moving are iterated (a point's result does not depend
+    # on the other points of the batch)
+    batch = X.shape[:-1]
+    X = np.array(np.broadcast_to(X, batch + (3,)))
+    shared = K.size == 9 * K.shape[-3] and T.size == 16 * T.shape[-3]  # one camera set for every point
+    Kb = K.reshape(K.shape[-3:]) if shared else np.broadcast_to(K, batch + K.shape[-3:])
+    Tb = T.reshape(T.shape[-3:]) if shared else np.broadcast_to(T, batch + T.shape[-3:])
+    uvb, wb = np.broadcast_to(uv, batch + uv.shape[-2:]), np.broadcast_to(w, batch + w.shape[-1:])
+    act = np.nonzero(np.ones(batch, bool))
     for _ in range(iterations):
-        uvp, X_C, J = project(X[..., None, :], K, T)
-        r = np.where(w[..., None] > 0, uv - uvp, 0.0)
-        JtW = np.swapaxes(J, -1, -2) * w[..., None, None]
+        if act[0].size == 0:
+            break
+        Xa, wa = X[act], wb[act]
+        uvp, _, J = project(Xa[..., None, :], Kb if shared else Kb[act], Tb if shared else Tb[act])
+        r = np.where(wa[..., None] > 0, uvb[act] - uvp, 0.0)
+        JtW = np.swapaxes(J, -1, -2) * wa[..., None, None]
         H = np.sum(JtW @ J, axis=-3)
         g = np.sum((JtW @ r[..., None])[..., 0], axis=-2)
         Hinv, _ = sym3_inv(H)
         dX = (Hinv @ g[..., None])[..., 0]
-        X = X + dX
-        if not np.any(np.abs(dX) > 1e-9 * (1.0 + np.abs(X))):
-            break
+        Xa = Xa + dX
+        X[act] = Xa
+        moving = np.any(np.abs(dX) > 1e-9 * (1.0 + np.abs(Xa)), axis=-1)
+        act = tuple(a[moving] for a in act)
     uvp, X_C, J = project(X[..., None, :], K, T)
     r = np.where(w[..., None] > 0, uv - uvp, 0.0)
     JtW = np.swapaxes(J, -1, -2) * w[..., None, None]
