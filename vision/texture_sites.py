@@ -346,8 +346,10 @@ def site_features(target: Target, footprint_m_per_px: float, *, fillers=None, de
                   rng: np.random.Generator | int | None = None):
     """The sites at this footprint as :class:`vision.geometric.SurfaceFeatures` for the calibrated
     mode: the sites first (``sites`` set; ``scale_m`` each site's diameter), then the features of
-    ``fillers`` (uniform features that carry a bin's measured density beyond its material's sites,
-    :func:`vision.geometric_calibrated.filler_feature_count`).  ``rng`` draws the sites' unit
+    ``fillers`` that have a flat neighbourhood of the sites' median diameter (uniform features that
+    carry a bin's measured density beyond its material's sites,
+    :func:`vision.geometric_calibrated.filler_feature_count`; ``area_m2`` the flat outer area they
+    stand for).  ``rng`` draws the sites' unit
     descriptors (None: a stream derived from ``target.seed`` and the footprint level, so a target's
     sites always have the same descriptors)."""
     from vision.geometric import SurfaceFeatures
@@ -359,7 +361,14 @@ def site_features(target: Target, footprint_m_per_px: float, *, fillers=None, de
     desc = rng.standard_normal((len(sites), int(descriptor_dim))).astype(np.float32)
     desc /= np.linalg.norm(desc, axis=1, keepdims=True)
     parts = [(sites.X_T, sites.normal_T, sites.size_m, desc, sites.triangle_id)]
+    area_m2 = sites.area_m2
     if fillers is not None and len(fillers):
-        parts.append((fillers.X_T, fillers.normal_T, fillers.scale_m, fillers.descriptors, fillers.triangle_id))
+        # fillers too need a flat neighbourhood of a keypoint's size (the sites' median diameter); their
+        # density is that of the flat outer surface they are left on
+        flat = _flat_support(target, fillers.X_T, fillers.normal_T,
+                             np.full(len(fillers), SUPPORT_RADIUS_OVER_SIZE * float(np.median(sites.size_m))))
+        parts.append((fillers.X_T[flat], fillers.normal_T[flat], fillers.scale_m[flat], fillers.descriptors[flat],
+                      fillers.triangle_id[flat]))
+        area_m2 = sites.area_m2 * float(np.mean(flat))
     X, nrm, size, d, tid = (np.concatenate(p) for p in zip(*parts, strict=True))
-    return SurfaceFeatures(X, nrm, size, d, tid, sites.area_m2, sites=sites)
+    return SurfaceFeatures(X, nrm, size, d, tid, area_m2, sites=sites)
