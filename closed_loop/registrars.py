@@ -298,7 +298,8 @@ class MLRegistrar(Registrar):
         """Maximum-likelihood fit with the points' full covariances: from ``R0`` (the translation the median of
         the pairs' ``Q − R0 P``) when given and successful, else from a robust start drawn from ``rng``."""
         if R0 is not None:
-            t0 = np.nanmedian(pairs.Q_H - pairs.P_H @ R0.T, axis=0)  # the pairs' translations, robustly
+            d = pairs.Q_H - pairs.P_H @ R0.T
+            t0 = np.median(d[np.all(np.isfinite(d), axis=1)], axis=0)  # the pairs' translations, robustly
             reg = fit_rigid_ml(pairs.P_H, pairs.Q_H, pairs.cov_P_H, pairs.cov_Q_H, R0=R0, t0=t0, rng=rng)
             if bool(reg.ok):
                 return reg

@@ -7,10 +7,20 @@ output, never an exception), because the public functions run inside sweeps.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy.stats import chi2 as _chi2
 
 __all__: list[str] = []
+
+
+@lru_cache(maxsize=64)
+def chi2_quantile(probability: float, dof: int) -> float:
+    """The χ² quantile of ``probability`` with ``dof`` degrees of freedom (SciPy's, cached: the gates
+    ask for the same few values thousands of times in a run)."""
+    return float(_chi2.ppf(probability, dof))
 
 
 def scalar_or_array(a: np.ndarray) -> object:

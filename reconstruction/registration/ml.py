@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.stats import chi2 as _chi2
 
 from attitude.batch import cross_product_matrices, matrices_from_rotvecs
-from reconstruction._geometry import as_float, check_probability, scalar_or_array
+from reconstruction._geometry import as_float, check_probability, chi2_quantile, scalar_or_array
 from reconstruction.registration.kabsch import check_second_moments, kabsch_flat, prepare_clouds
 from reconstruction.registration.residuals import (
     check_covariance_pair,
@@ -85,7 +84,7 @@ def fit_rigid_ml(P: ArrayLike, Q: ArrayLike, cov_P: ArrayLike, cov_Q: ArrayLike,
     check_second_moments(Pz, Qz, None)
     cPz = np.where(valid[..., None, None], cPf, np.eye(3))
     cQz = np.where(valid[..., None, None], cQf, np.eye(3))
-    gate2 = _chi2.ppf(gate_probability, 3)
+    gate2 = chi2_quantile(gate_probability, 3)
 
     # ---- start
     if R0 is not None or t0 is not None:

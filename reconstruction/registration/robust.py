@@ -9,9 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.stats import chi2 as _chi2
 
-from reconstruction._geometry import check_positive, check_probability, scalar_or_array
+from reconstruction._geometry import (
+    check_positive,
+    check_probability,
+    chi2_quantile,
+    scalar_or_array,
+)
 from reconstruction.registration.kabsch import check_second_moments, kabsch_flat, prepare_clouds
 from reconstruction.registration.residuals import (
     check_covariance_pair,
@@ -79,7 +83,7 @@ def fit_rigid_robust(P: ArrayLike, Q: ArrayLike, *, weights: ArrayLike | None = 
     if int(max_iterations) < 1:
         raise ValueError(f"max_iterations: must be >= 1, got {max_iterations!r}")
     rng = np.random.default_rng(rng)
-    gate2 = _chi2.ppf(gate_probability, 3) if covs is not None else threshold_m**2
+    gate2 = chi2_quantile(gate_probability, 3) if covs is not None else threshold_m**2
 
     Pf = P.reshape((B, N, 3))
     Qf = Q.reshape((B, N, 3))
