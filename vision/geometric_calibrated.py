@@ -78,10 +78,9 @@ def calibrated_feature_count(camera: PinholeCamera, target: Target, T_CW: np.nda
 def filler_feature_count(camera: PinholeCamera, target: Target, T_CW: np.ndarray, sites,
                          calibration: SiftCalibration | None = None) -> int:
     """Uniform filler features (outer surface) that the texture sites ``sites`` need beside them: enough
-    that the largest excess of a material's measured density at the closest camera over its site
-    density is reachable (0 where the sites cover every bin)."""
-    from vision.calibration import COS_VIEW_EDGES, SUN_BIN_EDGES
-
+    that the largest excess of a material's measured density at the closest camera (the measured
+    cells, as :func:`calibrated_feature_count`) over its site density is reachable (0 where the sites
+    cover every bin)."""
     cal = calibration if calibration is not None else load_calibration(target.name)
     T = np.asarray(T_CW, dtype=float).reshape(-1, 4, 4)
     c = -np.einsum("kji,kj->ki", T[:, :3, :3], T[:, :3, 3])
@@ -89,11 +88,13 @@ def filler_feature_count(camera: PinholeCamera, target: Target, T_CW: np.ndarray
     z_min = max(float(np.min(d)) - target.radius_m, 0.5 * float(np.min(d)))
     fp = z_min / float(np.sqrt(camera.K[0, 0] * camera.K[1, 1]))
     P = len(target.materials)
-    cos_v = 0.5 * (COS_VIEW_EDGES[:-1] + np.minimum(COS_VIEW_EDGES[1:], 1.0))
-    v_g, s_g, m_g = np.meshgrid(cos_v, np.arange(len(SUN_BIN_EDGES) - 1), np.arange(P), indexing="ij")
-    mat = m_g if cal.material_factor.shape[1] == P else None
-    per_material = np.max(cal.density(np.full(v_g.shape, fp), v_g, s_g, mat), axis=(0, 1))
-    excess = float(np.max(np.maximum(per_material - sites.density_by_material, 0.0)))
+    if cal.material_factor.shape[1] == P:   # each material's factor at this footprint, over the largest
+        factor = cal.density(np.full(P, fp), np.ones(P), np.ones(P, dtype=int), np.arange(P)) \
+            / cal.density(fp, 1.0, 1)
+        factor = factor / np.max(factor)
+    else:
+        factor = np.ones(P)
+    excess = float(np.max(np.maximum(cal.max_density(fp) * factor - sites.density_by_material, 0.0)))
     n = int(math.ceil(_DENSITY_MARGIN * excess * outer_surface_area_m2(target)))
     return min(n, _MAX_FEATURES)
 
