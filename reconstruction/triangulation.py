@@ -34,6 +34,7 @@ from reconstruction._geometry import (
     check_poses,
     check_positive,
     check_probability,
+    chi2_quantile,
     project,
     scalar_or_array,
     sym3_inv,
@@ -298,7 +299,8 @@ def triangulate(uv_px: ArrayLike, K: ArrayLike, T_CW: ArrayLike, *, pixel_sigma_
         degenerate = ~np.isfinite(X).all(-1) | ~(det > 1e-14 * (tr / 3.0) ** 3)
         behind = np.any(use & ~(depth > 0), axis=-1)
         dof = np.maximum(2 * nv - 3, 1)
-        thresh = _chi2.ppf(gate_probability, dof)
+        dofs, at = np.unique(dof, return_inverse=True)  # a few values: each quantile once (cached)
+        thresh = np.array([chi2_quantile(gate_probability, int(d)) for d in dofs])[at].reshape(dof.shape)
         bad_fit = chi2 > thresh
         if max_rms_reprojection_px is not None:
             bad_fit |= rms > max_rms_reprojection_px
