@@ -250,6 +250,8 @@ def associate_pairs(views: Sequence[ArrayLike], descriptors: Sequence[ArrayLike]
         if vs[b].shape[1] != vs[a].shape[1] or ds[b].shape[-1] != ds[a].shape[-1]:
             raise ValueError(f"pairs: epochs {a} and {b} differ in views {vs[a].shape[1]}/{vs[b].shape[1]} "
                              f"or descriptor length {ds[a].shape[-1]}/{ds[b].shape[-1]}")
+    if len({vs[a].shape[1] for a, _ in pairs}) > 1:
+        raise ValueError("pairs: every pair must have the same number of views (call once per camera set)")
     Xs = None if X is None else [as_float(x, f"X[{e}]") for e, x in enumerate(X)]
     res = [None] * len(vs) if residual is None else [None if r is None else as_float(r, f"residual[{e}]")
                                                       for e, r in enumerate(residual)]

@@ -266,3 +266,18 @@ def test_duplicate_removal_in_array_operations_equals_the_sequential_pass():
                     if other >= 0 and rank[other] > rank[k]:
                         keep[other] = False
         np.testing.assert_array_equal(_greedy_keep(rank, close), keep)
+
+
+def test_pairs_with_empty_epochs_or_mixed_camera_counts():
+    """An epoch without tracks gives a failed association for its pairs (as associate does); pairs
+    with different camera counts are refused."""
+    from reconstruction.association import associate_pairs
+
+    rng = np.random.default_rng(12)
+    d = rng.standard_normal((30, 8)).astype(np.float32)
+    v = np.ones((30, 2), bool)
+    out = associate_pairs([v, v[:0], v], [d, d[:0], d + 0.01], [(0, 1), (1, 2), (0, 2)])
+    assert [a.ok for a in out] == [False, False, True] and len(out[2].idx_prev) == 30
+    assert out[0].failure_reason == associate(v, d, v[:0], d[:0]).failure_reason
+    with pytest.raises(ValueError, match="same number of views"):
+        associate_pairs([v, v, np.ones((30, 3), bool), np.ones((30, 3), bool)], [d] * 4, [(0, 1), (2, 3)])
