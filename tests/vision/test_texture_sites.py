@@ -71,6 +71,7 @@ def test_sites_are_deterministic_and_cached_per_footprint_level(plate):
     b = texture_sites(_plate(), FP_40M)
     np.testing.assert_array_equal(a.X_T, b.X_T)
     np.testing.assert_array_equal(a.size_m, b.size_m)
+    np.testing.assert_array_equal(a.descriptor_gap, b.descriptor_gap)   # FLANN neighbours, seeded
     assert footprint_level(FP_40M * 2) == pytest.approx(2 * footprint_level(FP_40M))
     f1, f2 = site_features(plate, FP_40M), site_features(plate, FP_40M)
     np.testing.assert_array_equal(f1.descriptors, f2.descriptors)
