@@ -320,17 +320,37 @@ class SiftCalibration:
                 material: ArrayLike | None = None) -> np.ndarray:
         """Keypoints per m² of visible surface (``sun_bin`` 0: not lit; see :data:`SUN_BIN_EDGES`), times
         the factor of the surface ``material`` (index into the target's materials) when given."""
-        fp = np.asarray(footprint_m_per_px, dtype=float)
+        return self.density_at(self.density_bins(footprint_m_per_px, cos_view), sun_bin, material)
+
+    def density_bins(self, footprint_m_per_px: ArrayLike, cos_view: ArrayLike) -> tuple:
+        """The footprint interpolation (lower and upper range index, weight) and the view bin of
+        :meth:`density` at these points: computed once for several Sun bins or materials there
+        (:meth:`density_at`)."""
         v = np.clip(np.searchsorted(COS_VIEW_EDGES, np.abs(cos_view), side="right") - 1, 0, len(COS_VIEW_EDGES) - 2)
+        i, j, w = self._range_weights(np.asarray(footprint_m_per_px, dtype=float))
+        return i, j, w, v
+
+    def density_at(self, bins: tuple, sun_bin: ArrayLike, material: ArrayLike | None = None) -> np.ndarray:
+        """:meth:`density` at the points of ``bins`` (:meth:`density_bins`): the power law in footprint
+        between the tabulated logarithms of the bins' densities (:attr:`_log_density`)."""
+        i, j, w, v = bins
         s = np.asarray(sun_bin, dtype=int)
-        i, j, w = self._range_weights(fp)
-        lo = np.maximum(self.density_per_m2[i, v, s], 1e-9)
-        hi = np.maximum(self.density_per_m2[j, v, s], 1e-9)
         if material is not None and self.material_factor.shape[1] > 1:
             m = np.asarray(material, dtype=int)
-            lo = lo * self.material_factor[i, m]
-            hi = hi * self.material_factor[j, m]
-        return np.exp((1.0 - w) * np.log(lo) + w * np.log(hi))
+            lo, hi = self._log_density[i, v, s, m], self._log_density[j, v, s, m]
+        else:
+            lo, hi = self._log_density_all[i, v, s], self._log_density_all[j, v, s]
+        return np.exp((1.0 - w) * lo + w * hi)
+
+    @functools.cached_property
+    def _log_density_all(self) -> np.ndarray:
+        """log of the density table ``(R, V, S)`` (floored at 1e-9 per m²), every material together."""
+        return np.log(np.maximum(self.density_per_m2, 1e-9))
+
+    @functools.cached_property
+    def _log_density(self) -> np.ndarray:
+        """log of the density table times each material's factor, ``(R, V, S, P)``."""
+        return np.log(np.maximum(self.density_per_m2, 1e-9)[..., None] * self.material_factor[:, None, None, :])
 
     def sun_bin(self, cos_sun: ArrayLike, lit: ArrayLike) -> np.ndarray:
         """Sun bin of surfaces with this Sun-incidence cosine (lit side) and lit flag."""
