@@ -335,17 +335,20 @@ def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f
     # (shadow edges, silhouettes against lit parts) are measured as their own Sun bin
     g = _geometry(cams, T, q, sun, fsun, feats, min_feature_px=0.0, cos_view=0.0, cos_sun=-2.0, margin_px=margin_px)
     fp = g.z / f_px[None, :, None]                                        # (E, n, N) m/px
-    # the detection probabilities only where the cheap tests pass (elsewhere nothing is detected)
-    e_i, n_i, f_i = np.nonzero(g.vis)
-    fp_v, cv_v = fp[e_i, n_i, f_i], g.cos_view[e_i, n_i, f_i]
-    det = np.ones(len(f_i), dtype=bool)
+    # the detection probabilities only where the cheap tests pass (elsewhere nothing is detected), on
+    # the flat indices of those (epoch, camera, feature)
+    E, n, N = g.vis.shape
+    at = np.flatnonzero(g.vis)
+    f_i, e_i = at % N, at // (n * N)
+    fp_v, cv_v = np.take(fp, at), np.take(g.cos_view, at)
+    det = np.ones(len(at), dtype=bool)
     if is_site is not None and is_site.any():
         # a site is seen where its foreshortened diameter reaches MIN_FORESHORTENED_PX (not
         # renormalised: the density a bin measured at grazing view comes mostly from silhouettes and
         # the edges between faces, not from the texture of the grazing surface)
         with np.errstate(invalid="ignore", divide="ignore"):
             det &= ~is_site[f_i] | (feats.scale_m[f_i] * np.abs(cv_v) / fp_v >= MIN_FORESHORTENED_PX)
-    side_sun = np.where(cv_v >= 0, 1.0, -1.0) * g.cos_sun[e_i, 0, f_i]
+    side_sun = np.where(cv_v >= 0, 1.0, -1.0) * np.take(g.cos_sun, e_i * N + f_i)
     can_lit = side_sun > 0
     u = u_det[f_i]
     mat = None if material is None else material[f_i]
@@ -354,13 +357,15 @@ def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f
     bins = cal.density_bins(fp_v, cv_v)
     with np.errstate(invalid="ignore", divide="ignore"):
         p_lit = (cal.density_at(bins, cal.sun_bin(side_sun, can_lit), mat) - sub) / rho
-        p_dark = (cal.density_at(bins, np.zeros(len(f_i), dtype=int), mat) - sub) / rho
+        p_dark = (cal.density_at(bins, np.zeros(len(at), dtype=int), mat) - sub) / rho
     # features above both detection probabilities are not detected whatever the ray casting gives:
     # cast rays only for the others (the shadow of a feature decides only its own lit flag)
     det &= u < np.maximum(p_lit, p_dark)
-    g.vis[e_i, n_i, f_i] = det
+    vis = np.zeros(E * n * N, dtype=bool)
+    vis[at] = det
+    g.vis = vis.reshape(E, n, N)
     dark = _occlude(g, target, feats, _sun_T(q, sun), drop_shadowed=False)     # (E, N)
-    g.vis[e_i, n_i, f_i] &= u < np.where(can_lit & ~dark[e_i, f_i], p_lit, p_dark)
+    vis[at] &= u < np.where(can_lit & ~np.take(dark, e_i * N + f_i), p_lit, p_dark)
     return g, fp
 
 

@@ -334,12 +334,14 @@ class SiftCalibration:
         """:meth:`density` at the points of ``bins`` (:meth:`density_bins`): the power law in footprint
         between the tabulated logarithms of the bins' densities (:attr:`_log_density`)."""
         i, j, w, v = bins
-        s = np.asarray(sun_bin, dtype=int)
+        _, V, S = self.density_per_m2.shape
+        cell = v * S + np.asarray(sun_bin, dtype=int)                    # flat index of (v, s[, m]) in a range's table
         if material is not None and self.material_factor.shape[1] > 1:
-            m = np.asarray(material, dtype=int)
-            lo, hi = self._log_density[i, v, s, m], self._log_density[j, v, s, m]
+            P = self.material_factor.shape[1]
+            flat, step, cell = self._log_density.reshape(-1), V * S * P, cell * P + np.asarray(material, dtype=int)
         else:
-            lo, hi = self._log_density_all[i, v, s], self._log_density_all[j, v, s]
+            flat, step = self._log_density_all.reshape(-1), V * S
+        lo, hi = np.take(flat, i * step + cell), np.take(flat, j * step + cell)
         return np.exp((1.0 - w) * lo + w * hi)
 
     @functools.cached_property
