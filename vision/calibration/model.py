@@ -90,6 +90,21 @@ def _material_factor(t: dict) -> np.ndarray:
     return f * area.sum(axis=1, keepdims=True) / np.sum(f * area, axis=1, keepdims=True)
 
 
+def _bin_index(edges: np.ndarray, x: ArrayLike, side: str, lo: int, hi: int) -> np.ndarray:
+    """``clip(searchsorted(edges, x, side) - 1, lo, hi)`` for a short sorted table ``edges``, by one
+    comparison per edge between ``lo`` and ``hi`` (a binary search per element is several times
+    slower on large ``x``); NaN sorts last, as in ``searchsorted``."""
+    x = np.asarray(x, dtype=float)
+    above = np.greater_equal if side == "right" else np.greater
+    out = np.full(x.shape, lo, dtype=np.intp)
+    for e in edges[lo + 1:hi + 1]:
+        out += above(x, e)
+    nan = np.isnan(x)
+    if nan.any():
+        out[nan] = hi
+    return out
+
+
 def track_class(n_track_views: ArrayLike, n_cameras: int) -> np.ndarray:
     """Index into :data:`TRACK_CLASSES` of tracks seen in ``n_track_views`` of ``n_cameras`` cameras
     (formations of more than three cameras use the three-camera classes)."""
@@ -239,8 +254,8 @@ class SiftCalibration:
         if lf.size == 1:
             z = np.zeros(x.shape, dtype=int)
             return z, z, np.zeros(x.shape)
-        i = np.clip(np.searchsorted(lf, x) - 1, 0, lf.size - 2)
-        w = (x - lf[i]) / (lf[i + 1] - lf[i])
+        i = _bin_index(lf, x, "left", 0, lf.size - 2)
+        w = (x - np.take(lf, i)) / np.take(np.diff(lf), i)
         return i, i + 1, w
 
     def _by_range(self, table: np.ndarray, footprint: ArrayLike, column: np.ndarray) -> np.ndarray:
@@ -262,7 +277,7 @@ class SiftCalibration:
         image scale ``footprint_m_per_px`` (interpolated in log footprint, held beyond the calibrated
         ones) when given, else pooled over the calibrated ranges."""
         s = np.asarray(size_px, dtype=float)
-        b = np.clip(np.searchsorted(SIZE_EDGES_PX, np.nan_to_num(s), side="right") - 1, 0, len(self.sigma_px) - 1)
+        b = _bin_index(SIZE_EDGES_PX, np.nan_to_num(s), "right", 0, len(self.sigma_px) - 1)
         if footprint_m_per_px is None:
             return np.where(np.isfinite(s), self.sigma_px[b], np.nan)
         fp = np.broadcast_to(np.asarray(footprint_m_per_px, dtype=float), s.shape)
@@ -285,7 +300,7 @@ class SiftCalibration:
         w = np.clip(w, 0.0, 1.0)
         if grid.size == 1:
             return (1.0 - w) * tab[i, 0, c] + w * tab[j, 0, c]
-        k = np.clip(np.searchsorted(grid, ang) - 1, 0, grid.size - 2)
+        k = _bin_index(grid, ang, "left", 0, grid.size - 2)
         u = np.clip((ang - grid[k]) / (grid[k + 1] - grid[k]), 0.0, 1.0)
 
         def at(r):
@@ -326,7 +341,7 @@ class SiftCalibration:
         """The footprint interpolation (lower and upper range index, weight) and the view bin of
         :meth:`density` at these points: computed once for several Sun bins or materials there
         (:meth:`density_at`)."""
-        v = np.clip(np.searchsorted(COS_VIEW_EDGES, np.abs(cos_view), side="right") - 1, 0, len(COS_VIEW_EDGES) - 2)
+        v = _bin_index(COS_VIEW_EDGES, np.abs(cos_view), "right", 0, len(COS_VIEW_EDGES) - 2)
         i, j, w = self._range_weights(np.asarray(footprint_m_per_px, dtype=float))
         return i, j, w, v
 
@@ -356,8 +371,7 @@ class SiftCalibration:
 
     def sun_bin(self, cos_sun: ArrayLike, lit: ArrayLike) -> np.ndarray:
         """Sun bin of surfaces with this Sun-incidence cosine (lit side) and lit flag."""
-        b = np.clip(np.searchsorted(SUN_BIN_EDGES, np.asarray(cos_sun, dtype=float), side="right") - 1,
-                    1, len(SUN_BIN_EDGES) - 2)
+        b = _bin_index(SUN_BIN_EDGES, cos_sun, "right", 1, len(SUN_BIN_EDGES) - 2)
         return np.where(np.asarray(lit, dtype=bool), b, 0)
 
     def max_density(self, footprint_m_per_px: float) -> float:
