@@ -45,6 +45,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from attitude.quaternion import check_quat, matrix_from_quat
+from vision._blas import one_blas_thread
 from vision.calibration import SiftCalibration
 from vision.camera import PinholeCamera, cameras_per_view, check_pose
 from vision.observation import (
@@ -390,8 +391,10 @@ class _Geometry:
     R_CT: np.ndarray       # (E, n, 3, 3)
 
 
+@one_blas_thread()
 def _geometry(cams, T, q, sun, fsun, feats, *, min_feature_px, cos_view, cos_sun, margin_px) -> _Geometry:
-    """Projection and the cheap visibility tests (no ray casting) of a batch."""
+    """Projection and the cheap visibility tests (no ray casting) of a batch (one BLAS thread:
+    :mod:`vision._blas`)."""
     K = np.stack([c.K for c in cams])                                   # (n, 3, 3)
     fx = K[:, 0, 0][None, :, None]
     fy = K[:, 1, 1][None, :, None]
