@@ -70,3 +70,53 @@ def test_unknown_meshes_use_the_topex_calibration_and_a_missing_file_is_one_erro
     assert load_calibration("FY-1-like").target == "fy1"
     with pytest.raises(ValueError, match="coobs calibrate"):
         load_calibration("fy1", path=tmp_path / "none.json")
+
+
+def _density_formula(cal, fp, cos_view, sun_bin, material=None):
+    """The density's definition on the raw tables (one searchsorted and log per call): the reference
+    of the tabulated :meth:`SiftCalibration.density`."""
+    from vision.calibration import COS_VIEW_EDGES
+
+    lf = np.log(cal.footprint_m_per_px)
+    x = np.log(fp)
+    i = np.clip(np.searchsorted(lf, x) - 1, 0, lf.size - 2)
+    w = (x - lf[i]) / (lf[i + 1] - lf[i])
+    v = np.clip(np.searchsorted(COS_VIEW_EDGES, np.abs(cos_view), side="right") - 1, 0, len(COS_VIEW_EDGES) - 2)
+    lo = np.maximum(cal.density_per_m2[i, v, sun_bin], 1e-9)
+    hi = np.maximum(cal.density_per_m2[i + 1, v, sun_bin], 1e-9)
+    if material is not None:
+        lo, hi = lo * cal.material_factor[i, material], hi * cal.material_factor[i + 1, material]
+    return np.exp((1.0 - w) * np.log(lo) + w * np.log(hi))
+
+
+@pytest.mark.parametrize("name", ["fy1", "topex"])
+def test_tabulated_density_equals_its_definition_bit_for_bit(name):
+    """density (log table, flat look-ups, bins by comparison) gives exactly the formula's numbers, with
+    and without materials, inside and beyond the calibrated footprints; density_at on shared bins too."""
+    cal = load_calibration(name)
+    rng = np.random.default_rng(3)
+    n = 20000
+    fp = np.exp(rng.uniform(np.log(0.3 * cal.footprint_m_per_px[0]), np.log(3 * cal.footprint_m_per_px[-1]), n))
+    cos_v = np.concatenate([rng.uniform(-1.0, 1.0, n - 6), [0.0, 0.26, -0.5, 0.71, 0.87, 1.0]])
+    sun = rng.integers(0, 6, n)
+    mat = rng.integers(0, cal.material_factor.shape[1], n)
+    np.testing.assert_array_equal(cal.density(fp, cos_v, sun), _density_formula(cal, fp, cos_v, sun))
+    np.testing.assert_array_equal(cal.density(fp, cos_v, sun, mat), _density_formula(cal, fp, cos_v, sun, mat))
+    bins = cal.density_bins(fp, cos_v)
+    np.testing.assert_array_equal(cal.density_at(bins, np.zeros(n, dtype=int), mat),
+                                  _density_formula(cal, fp, cos_v, np.zeros(n, dtype=int), mat))
+    assert cal.density(fp[0], cos_v[0], sun[0]) == _density_formula(cal, fp[:1], cos_v[:1], sun[:1])[0]
+
+
+def test_bins_by_comparison_equal_searchsorted():
+    from vision.calibration.model import _bin_index
+
+    rng = np.random.default_rng(4)
+    for edges in (SIZE_EDGES_PX, np.array([-1.0, 0.0, 0.26, 0.5, 1.0001]), np.array([5.0, 10.0, 20.0, 30.0]), np.array([2.0])):
+        x = np.concatenate([rng.uniform(-3.0, 40.0, 2000), edges, [np.nan, np.inf, -np.inf]])
+        for side in ("left", "right"):
+            for lo, hi in ((0, max(len(edges) - 2, 0)), (1, len(edges) - 2), (0, len(edges) - 1)):
+                if hi < lo:
+                    continue
+                ref = np.clip(np.searchsorted(edges, x, side=side) - 1, lo, hi)
+                np.testing.assert_array_equal(_bin_index(edges, x, side, lo, hi), ref)

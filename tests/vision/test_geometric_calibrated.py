@@ -107,3 +107,46 @@ def test_fixed_model_is_the_default_and_refuses_unknown_noise_models(fy1):
         observe_epochs(CAM, T[None], fy1, np.array([[1.0, 0, 0, 0]]), SUN[None], rng=0, noise_model="fancy")
     o = observe_epochs(CAM, T[None], fy1, np.array([[1.0, 0, 0, 0]]), SUN[None], rng=0)[0]
     assert o.track_sigma_px is None and o.pixel_sigma_px == 0.5
+
+
+@pytest.mark.parametrize("sites", [False, True])
+def test_detection_on_the_visible_subset_equals_the_full_array_definition(fy1, sites):
+    """The detections (densities evaluated only where the cheap visibility tests pass, on flat indices)
+    equal the definition evaluated on every (epoch, camera, feature), bit for bit: same draws, same
+    rays cast."""
+    import vision.geometric_calibrated as gc
+    from vision.geometric import _geometry, _occlude, _sun_T
+    from vision.texture_sites import footprint_level, site_features
+
+    T = three_cameras(30.0, 10.0)
+    E = 3
+    q = np.array([quat_normalize(np.random.default_rng(9 + k).normal(size=4)) for k in range(E)])
+    TT, sun, fsun = np.broadcast_to(T, (E, *T.shape)), np.broadcast_to(SUN, (E, 3)), np.ones(E)
+    cal = load_calibration("fy1")
+    feats = surface_features(fy1, n_features=calibrated_feature_count(CAM, fy1, T), surface="outer")
+    if sites:
+        feats = site_features(fy1, footprint_level(40.0 / CAM.K[0, 0]), fillers=feats)
+    keep, vis = gc.detections([CAM] * 3, TT, fy1, q, sun, fsun, feats, np.random.default_rng(2), calibration=cal)
+    # the definition, on full arrays
+    st = gc._setup([CAM] * 3, TT[None], fy1, feats, cal, [np.random.default_rng(2)])
+    ref_keep = np.flatnonzero(st["u_det"][0] < st["bound"])
+    np.testing.assert_array_equal(keep, ref_keep)
+    sub = gc._subset(feats, keep)
+    rho_F, rho_sub = (a if np.ndim(a) == 0 else a[keep] for a in (st["rho_F"], st["rho_sub"]))
+    u = st["u_det"][0, keep][None, None, :]
+    material = None if st["material"] is None else st["material"][keep]
+    g = _geometry([CAM] * 3, TT, q, sun, fsun, sub, min_feature_px=0.0, cos_view=0.0, cos_sun=-2.0, margin_px=0.0)
+    fp = g.z / st["f_px"][None, :, None]
+    is_site = st["is_site"][keep]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g.vis &= ~is_site | (sub.scale_m * np.abs(g.cos_view) / fp >= gc.MIN_FORESHORTENED_PX)
+        side = np.where(g.cos_view >= 0, 1.0, -1.0)
+        can_lit = side * g.cos_sun > 0
+        fp_ok = np.where(g.vis, fp, 1.0)
+        p_lit = (cal.density(fp_ok, g.cos_view, cal.sun_bin(side * g.cos_sun, can_lit), material) - rho_sub) / rho_F
+        p_dark = (cal.density(fp_ok, g.cos_view, np.zeros(fp.shape, dtype=int), material) - rho_sub) / rho_F
+    g.vis &= u < np.maximum(p_lit, p_dark)
+    dark = _occlude(g, fy1, sub, _sun_T(q, sun), drop_shadowed=False)
+    g.vis &= u < np.where(can_lit & ~dark[:, None, :], p_lit, p_dark)
+    np.testing.assert_array_equal(vis, g.vis)
+    assert vis.sum() > 100
