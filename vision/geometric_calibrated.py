@@ -499,9 +499,8 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         ids = gid.astype(np.int64)
         X_true = feats.X_T[gid].copy()
         prev = (g.R_CT[k], fid, state.copy())
-        pair = [(i, j) for i in range(n) for j in range(i + 1, n)]
         fp_med = float(np.median(fp_f[fid]))
-        fm = float(np.mean([cal.false_match_rate_at(fp_med, ang[i, j]) for i, j in pair]))
+        fm = float(np.mean(cal.false_match_rate_at(fp_med, ang[np.triu_indices(n, 1)])))
         if fm > 0:
             keep_m = _false_matches(rng, fm, uv_e, seen, g.z[k][:, loc].T, cams, T[k], desc, ids, X_true,
                                     target.radius_m, float(np.median(sig)), margin_px)

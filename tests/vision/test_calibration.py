@@ -120,3 +120,16 @@ def test_bins_by_comparison_equal_searchsorted():
                     continue
                 ref = np.clip(np.searchsorted(edges, x, side=side) - 1, lo, hi)
                 np.testing.assert_array_equal(_bin_index(edges, x, side, lo, hi), ref)
+
+
+@pytest.mark.parametrize("name", ["fy1", "topex"])
+def test_rates_on_broadcast_arrays_equal_their_pointwise_values(name):
+    """A rate of (footprints × angles) arrays is, element by element, the rate at each pair of scalars."""
+    cal = load_calibration(name)
+    fp = np.array([0.5, 1.0, 1.7, 4.0]) * cal.footprint_m_per_px[0]
+    ang = np.array([[0.0, 7.0, 12.5], [20.0, 33.0, 80.0]])
+    for rate in (cal.pair_survival_at, cal.false_match_rate_at, cal.association_survival_at):
+        many = rate(fp[:, None, None], ang[None])
+        one = np.array([[[rate(f, a) for a in row] for row in ang] for f in fp])
+        np.testing.assert_array_equal(many, one)
+        np.testing.assert_array_equal(rate(fp, 3.0), [rate(f, 3.0) for f in fp])

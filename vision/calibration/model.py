@@ -398,13 +398,18 @@ class SiftCalibration:
         return np.exp((1.0 - w) * np.log(qi) + w * np.log(qj))
 
     def _rate(self, grid: np.ndarray, table: np.ndarray, footprint, x) -> np.ndarray:
-        fp, x = np.broadcast_arrays(np.asarray(footprint, dtype=float), np.asarray(x, dtype=float))
-        rows = self._along(grid, table, x)               # (R, ...)
+        """``table`` interpolated along ``grid`` at x and in footprint, clipped to [0, 1]: each row at
+        x's own points and the footprint weights at the footprint's own, broadcast together after."""
+        fp, x = np.asarray(footprint, dtype=float), np.asarray(x, dtype=float)
+        shape = np.broadcast_shapes(fp.shape, x.shape)
+        rows = self._along(grid, table, x)               # (R, *x.shape)
+        R = rows.shape[0]
+        rows = np.broadcast_to(rows.reshape((R,) + (1,) * (len(shape) - x.ndim) + x.shape), (R, *shape))
         i, j, w = self._range_weights(fp)
         w = np.clip(w, 0.0, 1.0)
         take = np.take_along_axis
-        lo = take(rows, i[None], axis=0)[0]
-        hi = take(rows, j[None], axis=0)[0]
+        lo = take(rows, np.broadcast_to(i, shape)[None], axis=0)[0]
+        hi = take(rows, np.broadcast_to(j, shape)[None], axis=0)[0]
         return np.clip((1.0 - w) * lo + w * hi, 0.0, 1.0)
 
     def pair_survival_at(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike) -> np.ndarray:
