@@ -256,8 +256,9 @@ def _setup(cams, T, target, feats, cal, rngs) -> dict:
     c_dist = np.linalg.norm(np.einsum("...ji,...j->...i", T[..., :3, :3], T[..., :3, 3]), axis=-1)  # (R, E, n)
     fp_lo = max(float(np.min(c_dist)) - target.radius_m, 1e-3) / float(np.max(f_px))
     fp_hi = (float(np.max(c_dist)) + target.radius_m) / float(np.min(f_px))
-    bound = (_detection_bound(cal, fp_lo, fp_hi, material) - rho_sub) / rho_F   # (N,)
-    return {"u_det": u_det, "bound": bound, "rho_F": rho_F, "rho_sub": rho_sub, "is_site": is_site,
+    bound_view = (_detection_bound(cal, fp_lo, fp_hi, material) - rho_sub) / rho_F   # (V, N) per view bin
+    bound_view = np.broadcast_to(bound_view, (bound_view.shape[0], N))
+    return {"u_det": u_det, "bound": bound_view.max(axis=0), "bound_view": bound_view, "rho_F": rho_F, "rho_sub": rho_sub, "is_site": is_site,
             "material": material, "f_px": f_px}
 
 
@@ -268,7 +269,8 @@ def _detect_trial(st: dict, r: int, cams, T, q, sun, fsun, feats, target, cal, m
     g, fp = _detect(cams, T, q, sun, fsun, _subset(feats, keep), target, cal, st["u_det"][r, keep],
                     None if material is None else material[keep], rho_F if np.ndim(rho_F) == 0 else rho_F[keep],
                     st["f_px"], margin_px, rho_sub=rho_sub if np.ndim(rho_sub) == 0 else rho_sub[keep],
-                    is_site=st["is_site"][keep])
+                    is_site=st["is_site"][keep],
+                    bound_view=np.ascontiguousarray(st["bound_view"][:, keep]))
     return keep, g, fp
 
 
@@ -294,7 +296,8 @@ def _site_uniforms(detection_rank: np.ndarray, rng: np.random.Generator) -> np.n
 
 def _detection_bound(cal: SiftCalibration, fp_lo: float, fp_hi: float, material: np.ndarray | None) -> np.ndarray:
     """Largest measured density (per m²) a feature of each material can have at footprints in
-    ``[fp_lo, fp_hi]`` m/px over every view-angle and Sun bin: ``(N,)`` (or a scalar without materials).
+    ``[fp_lo, fp_hi]`` m/px over every Sun bin, per view-angle bin: ``(V, N)`` (``(V, 1)`` without
+    materials); its maximum over the view bins bounds the feature over every bin.
 
     The density is piecewise linear in log footprint between the calibrated footprints (and beyond
     them), so its largest value on the interval is at an end or at a calibrated footprint inside.
@@ -303,15 +306,15 @@ def _detection_bound(cal: SiftCalibration, fp_lo: float, fp_hi: float, material:
 
     knots = cal.footprint_m_per_px[(cal.footprint_m_per_px > fp_lo) & (cal.footprint_m_per_px < fp_hi)]
     fps = np.concatenate([[fp_lo, fp_hi], knots])
-    cos_v = 0.5 * (COS_VIEW_EDGES[:-1] + np.minimum(COS_VIEW_EDGES[1:], 1.0))
+    cos_v = 0.5 * (COS_VIEW_EDGES[:-1] + np.minimum(COS_VIEW_EDGES[1:], 1.0))     # one per view bin
     sun_b = np.arange(len(SUN_BIN_EDGES) - 1)
     if material is None:
         fp_g, v_g, s_g = np.meshgrid(fps, cos_v, sun_b, indexing="ij")
-        return np.asarray(np.max(cal.density(fp_g, v_g, s_g)) * (1.0 + 1e-9))
+        return (np.max(cal.density(fp_g, v_g, s_g), axis=(0, 2)) * (1.0 + 1e-9))[:, None]
     mats = np.arange(int(np.max(material)) + 1)
     fp_g, v_g, s_g, m_g = np.meshgrid(fps, cos_v, sun_b, mats, indexing="ij")
-    per_material = np.max(cal.density(fp_g, v_g, s_g, m_g), axis=(0, 1, 2)) * (1.0 + 1e-9)
-    return per_material[material]
+    per_material = np.max(cal.density(fp_g, v_g, s_g, m_g), axis=(0, 2)) * (1.0 + 1e-9)   # (V, P)
+    return per_material[:, material]
 
 
 def _subset(feats, keep: np.ndarray):
@@ -323,12 +326,14 @@ def _subset(feats, keep: np.ndarray):
 
 
 def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f_px, margin_px, rho_sub=0.0,
-            is_site=None):
+            is_site=None, bound_view=None):
     """Projection, visibility and detection of one trial's epochs: the geometry (``vis`` the detections)
     and the footprints ``(E, n, N)``, m/px.  A feature is detected with probability ``(ρ − rho_sub) / rho_F``
     (ρ the measured density of its bin; ``rho_sub`` the density other features carry: the sites of
     its material, for a filler); the texture sites (``is_site``) only where their foreshortened
-    diameter is at least :data:`MIN_FORESHORTENED_PX`."""
+    diameter is at least :data:`MIN_FORESHORTENED_PX`.  ``bound_view (V, N)``: detection probabilities
+    that bound each feature's in each view-angle bin (:func:`_detection_bound`; the densities are
+    evaluated only below them)."""
     from vision.geometric import _geometry, _occlude, _sun_T
 
     # every surface facing a camera counts, lit or not: keypoints on shadowed or unlit surfaces
@@ -348,9 +353,13 @@ def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f
         # the edges between faces, not from the texture of the grazing surface)
         with np.errstate(invalid="ignore", divide="ignore"):
             det &= ~is_site[f_i] | (feats.scale_m[f_i] * np.abs(cv_v) / fp_v >= MIN_FORESHORTENED_PX)
+    u = u_det[f_i]
+    if bound_view is not None:          # above the bound of its view bin: not detected, whatever the density
+        det &= u < np.take(bound_view, cal.view_bin(cv_v) * N + f_i)
+    at, f_i, e_i, fp_v, cv_v, u = at[det], f_i[det], e_i[det], fp_v[det], cv_v[det], u[det]
+    det = np.ones(len(at), dtype=bool)
     side_sun = np.where(cv_v >= 0, 1.0, -1.0) * np.take(g.cos_sun, e_i * N + f_i)
     can_lit = side_sun > 0
-    u = u_det[f_i]
     mat = None if material is None else material[f_i]
     sub = rho_sub if np.ndim(rho_sub) == 0 else rho_sub[f_i]
     rho = rho_F if np.ndim(rho_F) == 0 else rho_F[f_i]

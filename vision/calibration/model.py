@@ -341,9 +341,13 @@ class SiftCalibration:
         """The footprint interpolation (lower and upper range index, weight) and the view bin of
         :meth:`density` at these points: computed once for several Sun bins or materials there
         (:meth:`density_at`)."""
-        v = _bin_index(COS_VIEW_EDGES, np.abs(cos_view), "right", 0, len(COS_VIEW_EDGES) - 2)
         i, j, w = self._range_weights(np.asarray(footprint_m_per_px, dtype=float))
-        return i, j, w, v
+        return i, j, w, self.view_bin(cos_view)
+
+    @staticmethod
+    def view_bin(cos_view: ArrayLike) -> np.ndarray:
+        """Index of the view-angle bin (:data:`COS_VIEW_EDGES`) of surfaces at this signed cosine."""
+        return _bin_index(COS_VIEW_EDGES, np.abs(cos_view), "right", 0, len(COS_VIEW_EDGES) - 2)
 
     def density_at(self, bins: tuple, sun_bin: ArrayLike, material: ArrayLike | None = None) -> np.ndarray:
         """:meth:`density` at the points of ``bins`` (:meth:`density_bins`): the power law in footprint
