@@ -256,15 +256,27 @@ def _setup(cams, T, target, feats, cal, rngs) -> dict:
     c_dist = np.linalg.norm(np.einsum("...ji,...j->...i", T[..., :3, :3], T[..., :3, 3]), axis=-1)  # (R, E, n)
     fp_lo = max(float(np.min(c_dist)) - target.radius_m, 1e-3) / float(np.max(f_px))
     fp_hi = (float(np.max(c_dist)) + target.radius_m) / float(np.min(f_px))
-    bound_view = (_detection_bound(cal, fp_lo, fp_hi, material) - rho_sub) / rho_F   # (V, N) per view bin
-    bound_view = np.broadcast_to(bound_view, (bound_view.shape[0], N))
-    return {"u_det": u_det, "bound": bound_view.max(axis=0), "bound_view": bound_view, "rho_F": rho_F, "rho_sub": rho_sub, "is_site": is_site,
+    bound = (_detection_bound(cal, fp_lo, fp_hi, material) - rho_sub) / rho_F   # (V, S, N)
+    bound = np.broadcast_to(bound, (*bound.shape[:2], N))
+    return {"u_det": u_det, "bound": bound.max(axis=(0, 1)), "bound_view": bound.max(axis=1),
+            "bound_sun": bound.max(axis=0), "rho_F": rho_F, "rho_sub": rho_sub, "is_site": is_site,
             "material": material, "f_px": f_px}
 
 
 def _detect_trial(st: dict, r: int, cams, T, q, sun, fsun, feats, target, cal, margin_px):
     """Trial r's features that can be detected, their geometry with detections and footprints (:func:`_detect`)."""
+    from vision.geometric import _sun_T
+
     keep = np.flatnonzero(st["u_det"][r] < st["bound"])
+    # a feature is lit at the bin of its Sun incidence (|cos|: either side may face the cameras) or
+    # unlit: above the bounds of both at every lit epoch, it is never detected (the bins of the
+    # incidence ± 1e-6, against rounding at a bin edge)
+    cos_sun = np.abs(np.einsum("ei,fi->ef", _sun_T(q, sun), feats.normal_T[keep]))          # (E, K)
+    bs = np.ascontiguousarray(st["bound_sun"][:, keep])                                     # (S, K)
+    lit = np.maximum(np.take_along_axis(bs, cal.sun_bin(cos_sun - 1e-6, True), axis=0),
+                     np.take_along_axis(bs, cal.sun_bin(cos_sun + 1e-6, True), axis=0))
+    can = (st["u_det"][r, keep] < np.maximum(lit, bs[0])) & (fsun > 0)[:, None]
+    keep = keep[can.any(axis=0)]
     rho_F, rho_sub, material = st["rho_F"], st["rho_sub"], st["material"]
     g, fp = _detect(cams, T, q, sun, fsun, _subset(feats, keep), target, cal, st["u_det"][r, keep],
                     None if material is None else material[keep], rho_F if np.ndim(rho_F) == 0 else rho_F[keep],
@@ -296,8 +308,8 @@ def _site_uniforms(detection_rank: np.ndarray, rng: np.random.Generator) -> np.n
 
 def _detection_bound(cal: SiftCalibration, fp_lo: float, fp_hi: float, material: np.ndarray | None) -> np.ndarray:
     """Largest measured density (per m²) a feature of each material can have at footprints in
-    ``[fp_lo, fp_hi]`` m/px over every Sun bin, per view-angle bin: ``(V, N)`` (``(V, 1)`` without
-    materials); its maximum over the view bins bounds the feature over every bin.
+    ``[fp_lo, fp_hi]`` m/px, per view-angle and Sun bin: ``(V, S, N)`` (``(V, S, 1)`` without
+    materials); its maximum over the bins bounds the feature over every bin.
 
     The density is piecewise linear in log footprint between the calibrated footprints (and beyond
     them), so its largest value on the interval is at an end or at a calibrated footprint inside.
@@ -310,11 +322,11 @@ def _detection_bound(cal: SiftCalibration, fp_lo: float, fp_hi: float, material:
     sun_b = np.arange(len(SUN_BIN_EDGES) - 1)
     if material is None:
         fp_g, v_g, s_g = np.meshgrid(fps, cos_v, sun_b, indexing="ij")
-        return (np.max(cal.density(fp_g, v_g, s_g), axis=(0, 2)) * (1.0 + 1e-9))[:, None]
+        return (np.max(cal.density(fp_g, v_g, s_g), axis=0) * (1.0 + 1e-9))[:, :, None]
     mats = np.arange(int(np.max(material)) + 1)
     fp_g, v_g, s_g, m_g = np.meshgrid(fps, cos_v, sun_b, mats, indexing="ij")
-    per_material = np.max(cal.density(fp_g, v_g, s_g, m_g), axis=(0, 2)) * (1.0 + 1e-9)   # (V, P)
-    return per_material[:, material]
+    per_material = np.max(cal.density(fp_g, v_g, s_g, m_g), axis=0) * (1.0 + 1e-9)   # (V, S, P)
+    return per_material[:, :, material]
 
 
 def _subset(feats, keep: np.ndarray):
