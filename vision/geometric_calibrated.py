@@ -401,8 +401,9 @@ def _descriptors(labels: np.ndarray, feats, extra: dict, rng: np.random.Generato
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         extra.update(zip((int(v) for v in new), d, strict=True))
     out = feats.descriptors[np.minimum(labels, N - 1)].copy()
-    for i in np.nonzero(labels >= N)[0]:
-        out[i] = extra[int(labels[i])]
+    fresh = np.nonzero(labels >= N)[0]
+    if fresh.size:
+        out[fresh] = np.stack([extra[int(v)] for v in labels[fresh]])
     return out
 
 

@@ -249,14 +249,20 @@ class SiftCalibration:
 
     def _range_weights(self, footprint: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Lower index, upper index and weight of the upper one, linear in log footprint."""
-        lf = np.log(self.footprint_m_per_px)
+        lf, dlf = self._log_footprint
         x = np.log(np.asarray(footprint, dtype=float))
         if lf.size == 1:
             z = np.zeros(x.shape, dtype=int)
             return z, z, np.zeros(x.shape)
         i = _bin_index(lf, x, "left", 0, lf.size - 2)
-        w = (x - np.take(lf, i)) / np.take(np.diff(lf), i)
+        w = (x - np.take(lf, i)) / np.take(dlf, i)
         return i, i + 1, w
+
+    @functools.cached_property
+    def _log_footprint(self) -> tuple[np.ndarray, np.ndarray]:
+        """log of the calibrated footprints and their differences."""
+        lf = np.log(self.footprint_m_per_px)
+        return lf, np.diff(lf)
 
     def _by_range(self, table: np.ndarray, footprint: ArrayLike, column: np.ndarray) -> np.ndarray:
         """``table[r, column]`` interpolated in footprint (held beyond the calibrated ones)."""
