@@ -270,12 +270,6 @@ class SiftCalibration:
         w = np.clip(w, 0.0, 1.0)
         return (1.0 - w) * table[i, column] + w * table[j, column]
 
-    @staticmethod
-    def _along(grid: np.ndarray, values: np.ndarray, x: ArrayLike) -> np.ndarray:
-        """Per-range rows ``values (R, G)`` interpolated along ``grid`` at x; returns (R, ...) ."""
-        x = np.asarray(x, dtype=float)
-        return np.stack([np.interp(x, grid, row) for row in values])
-
     # -- the measured statistics -----------------------------------------------------------------
 
     def sigma_for_size(self, size_px: ArrayLike, footprint_m_per_px: ArrayLike | None = None) -> np.ndarray:
@@ -408,19 +402,13 @@ class SiftCalibration:
         return np.exp((1.0 - w) * np.log(qi) + w * np.log(qj))
 
     def _rate(self, grid: np.ndarray, table: np.ndarray, footprint, x) -> np.ndarray:
-        """``table`` interpolated along ``grid`` at x and in footprint, clipped to [0, 1]: each row at
-        x's own points and the footprint weights at the footprint's own, broadcast together after."""
-        fp, x = np.asarray(footprint, dtype=float), np.asarray(x, dtype=float)
-        shape = np.broadcast_shapes(fp.shape, x.shape)
-        rows = self._along(grid, table, x)               # (R, *x.shape)
-        R = rows.shape[0]
-        rows = np.broadcast_to(rows.reshape((R,) + (1,) * (len(shape) - x.ndim) + x.shape), (R, *shape))
-        i, j, w = self._range_weights(fp)
+        """``table (R, G)`` interpolated along ``grid`` at x and in footprint, clipped to [0, 1]: each
+        range's row at x's own points and the footprint weights at the footprint's own, broadcast
+        together by the choice of rows (R ≤ 32)."""
+        rows = [np.interp(np.asarray(x, dtype=float), grid, row) for row in table]
+        i, j, w = self._range_weights(np.asarray(footprint, dtype=float))
         w = np.clip(w, 0.0, 1.0)
-        take = np.take_along_axis
-        lo = take(rows, np.broadcast_to(i, shape)[None], axis=0)[0]
-        hi = take(rows, np.broadcast_to(j, shape)[None], axis=0)[0]
-        return np.clip((1.0 - w) * lo + w * hi, 0.0, 1.0)
+        return np.clip((1.0 - w) * np.choose(i, rows) + w * np.choose(j, rows), 0.0, 1.0)
 
     def pair_survival_at(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike) -> np.ndarray:
         """Probability that a keypoint seen by a second camera ``angle_deg`` away is correctly matched."""
