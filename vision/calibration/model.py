@@ -394,12 +394,8 @@ class SiftCalibration:
         fp, u = np.broadcast_arrays(fp, u)
         i, j, w = self._range_weights(fp)
         w = np.clip(w, 0.0, 1.0)
-        qi = np.empty(fp.shape)
-        qj = np.empty(fp.shape)
-        for r in np.unique(np.concatenate([i.ravel(), j.ravel()])):
-            qi[i == r] = np.interp(u[i == r], self.size_quantiles, self.size_px_quantiles[r])
-            qj[j == r] = np.interp(u[j == r], self.size_quantiles, self.size_px_quantiles[r])
-        return np.exp((1.0 - w) * np.log(qi) + w * np.log(qj))
+        rows = [np.interp(u, self.size_quantiles, q) for q in self.size_px_quantiles]   # each range's (R ≤ 32)
+        return np.exp((1.0 - w) * np.log(np.choose(i, rows)) + w * np.log(np.choose(j, rows)))
 
     def _rate(self, grid: np.ndarray, table: np.ndarray, footprint, x) -> np.ndarray:
         """``table (R, G)`` interpolated along ``grid`` at x and in footprint, clipped to [0, 1]: each
