@@ -2,10 +2,10 @@
 
 The projections of :mod:`vision.geometric` multiply ``(3, 3)`` rotations by ``(3, N)`` feature
 coordinates: OpenBLAS splits such products over its threads once N is large, and the threads then
-spin while waiting for the next call, which costs about a third of the CPU of the calibrated mode's
-Experiment A cells (``coobs bench --only calibrated``: 14.1 → 9.6 CPU s on four of its cells with
-``OPENBLAS_NUM_THREADS=1``, the same observations bit for bit: a thread computes the same columns
-with the same kernel).  :func:`one_blas_thread` holds OpenBLAS at one thread for a block; where
+spin while waiting for the next call: about a third of the CPU of the calibrated mode's close-range
+Experiment A cells (four cells of ``coobs bench --only calibrated``'s subset, 30 and 100 m, timed
+apart: 14.1 → 9.6 CPU s with ``OPENBLAS_NUM_THREADS=1``, the same observations bit for bit: each
+column is computed by the same kernel whatever the thread).  :func:`one_blas_thread` holds OpenBLAS at one thread for a block; where
 numpy's BLAS is not an OpenBLAS found here it does nothing.
 """
 
