@@ -5,9 +5,9 @@ distances computed exactly in double precision (``Σ (a_d − b_d)²`` in a fixe
 square root) and sorted by (distance, index): equal distances keep the index order.  The search is done
 in two passes:
 
-1. a float32 Gram pass ``G = A Bᵀ`` (four query rows at a time, so each reference row read from
-   cache serves four dot products; reassociated sums that vectorise) ranks the references of each
-   query by ``|b|² − 2 a·b`` and keeps its ``k + MARGIN`` best candidates, and the next one;
+1. a float32 Gram pass ``G = A Bᵀ`` (BLAS ``sgemm`` on one thread, a block of query rows at a time)
+   ranks the references of each query by ``|b|² − 2 a·b`` and keeps its ``k + MARGIN`` best
+   candidates, and the next one;
 2. the candidates' exact distances pick and order the ``k`` nearest.
 
 Rounding in pass 1 only affects which candidates are looked at, never the result: every float32 dot
@@ -22,41 +22,14 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from vision._blas import one_blas_thread
+
 #: candidates kept beyond ``k`` in the float32 pass
 MARGIN = 4
+#: query rows per float32 Gram block (bounds its memory: 1024 × N × 4 bytes)
+_BLOCK_ROWS = 1024
 _U32 = 2.0 ** -24
 _JIT = dict(cache=True, nogil=True, error_model="numpy")
-
-
-@numba.njit(fastmath={"reassoc", "contract"}, **_JIT)
-def _gram_rows(A, B, i0, G):
-    """``G[r, j] = A[i0 + r] · B[j]`` (float32) for the up to four rows ``r`` of the block at ``i0``."""
-    M, D = A.shape
-    N = B.shape[0]
-    nr = min(4, M - i0)
-    if nr == 4:
-        for j in range(N):
-            s0 = np.float32(0.0)
-            s1 = np.float32(0.0)
-            s2 = np.float32(0.0)
-            s3 = np.float32(0.0)
-            for d in range(D):
-                b = B[j, d]
-                s0 += A[i0, d] * b
-                s1 += A[i0 + 1, d] * b
-                s2 += A[i0 + 2, d] * b
-                s3 += A[i0 + 3, d] * b
-            G[0, j] = s0
-            G[1, j] = s1
-            G[2, j] = s2
-            G[3, j] = s3
-    else:
-        for r in range(nr):
-            for j in range(N):
-                s = np.float32(0.0)
-                for d in range(D):
-                    s += A[i0 + r, d] * B[j, d]
-                G[r, j] = s
 
 
 @numba.njit(**_JIT)
@@ -100,8 +73,10 @@ def _insert(vals, idx, n, v, j):
 
 
 @numba.njit(**_JIT)
-def _knn_l2(A, B, k, dist, nidx):
-    M, D = A.shape
+def _knn_l2(A, B, G, row0, k, dist, nidx):
+    """Rows ``row0 .. row0 + len(G)`` of the search, ``G`` their float32 Gram rows against ``B``."""
+    D = A.shape[1]
+    M = row0 + G.shape[0]
     N = B.shape[0]
     nb = np.empty(N)
     nb_max = 0.0
@@ -113,44 +88,41 @@ def _knn_l2(A, B, k, dist, nidx):
         nb_max = max(nb_max, s)
     m = min(N, k + MARGIN)
     cap = min(N, m + 1)
-    G = np.empty((4, N), np.float32)
     av = np.empty(cap)
     ai = np.empty(cap, np.int64)
     ev = np.empty(N)
     ei = np.empty(N, np.int64)
     kk = min(k, N)
-    for i0 in range(0, M, 4):
-        _gram_rows(A, B, i0, G)
-        for r in range(min(4, M - i0)):
-            i = i0 + r
-            na = 0.0
-            for d in range(D):
-                na += np.float64(A[i, d]) * np.float64(A[i, d])
-            n = 0
-            for j in range(cap):
-                n = _insert(av, ai, n, nb[j] - 2.0 * np.float64(G[r, j]), j)
-            worst = av[cap - 1]
-            for j in range(cap, N):
-                v = nb[j] - 2.0 * np.float64(G[r, j])
-                if v < worst:
-                    _insert(av, ai, cap, v, j)
-                    worst = av[cap - 1]
-            ne = 0
-            for c in range(m):
-                ne = _insert(ev, ei, ne, _exact_sq(A, i, B, ai[c]), ai[c])
-            if cap > m:  # references left out: is the k-th candidate surely nearer than all of them?
-                tol = 4.0 * D * _U32 * (na + nb_max)
-                if not ev[kk - 1] < av[m] + na - tol:
-                    ne = 0
-                    for j in range(N):
-                        ne = _insert(ev, ei, ne, _exact_sq(A, i, B, j), j)
-            for c in range(k):
-                if c < kk:
-                    dist[i, c] = np.sqrt(ev[c])
-                    nidx[i, c] = ei[c]
-                else:
-                    dist[i, c] = np.inf
-                    nidx[i, c] = -1
+    for i in range(row0, M):
+        r = i - row0
+        na = 0.0
+        for d in range(D):
+            na += np.float64(A[i, d]) * np.float64(A[i, d])
+        n = 0
+        for j in range(cap):
+            n = _insert(av, ai, n, nb[j] - 2.0 * np.float64(G[r, j]), j)
+        worst = av[cap - 1]
+        for j in range(cap, N):
+            v = nb[j] - 2.0 * np.float64(G[r, j])
+            if v < worst:
+                _insert(av, ai, cap, v, j)
+                worst = av[cap - 1]
+        ne = 0
+        for c in range(m):
+            ne = _insert(ev, ei, ne, _exact_sq(A, i, B, ai[c]), ai[c])
+        if cap > m:  # references left out: is the k-th candidate surely nearer than all of them?
+            tol = 4.0 * D * _U32 * (na + nb_max)
+            if not ev[kk - 1] < av[m] + na - tol:
+                ne = 0
+                for j in range(N):
+                    ne = _insert(ev, ei, ne, _exact_sq(A, i, B, j), j)
+        for c in range(k):
+            if c < kk:
+                dist[i, c] = np.sqrt(ev[c])
+                nidx[i, c] = ei[c]
+            else:
+                dist[i, c] = np.inf
+                nidx[i, c] = -1
 
 
 def knn_l2(A: np.ndarray, B: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -164,7 +136,10 @@ def knn_l2(A: np.ndarray, B: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray
     dist = np.empty((A.shape[0], int(k)))
     nidx = np.empty((A.shape[0], int(k)), np.int64)
     if A.shape[0] and B.shape[0] and k > 0:
-        _knn_l2(A, B, int(k), dist, nidx)
+        with one_blas_thread():
+            for row0 in range(0, A.shape[0], _BLOCK_ROWS):
+                G = A[row0:row0 + _BLOCK_ROWS] @ B.T
+                _knn_l2(A, B, G, row0, int(k), dist, nidx)
     else:
         dist[:] = np.inf
         nidx[:] = -1
