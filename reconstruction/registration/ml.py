@@ -35,9 +35,11 @@ def fit_rigid_ml(P: ArrayLike, Q: ArrayLike, cov_P: ArrayLike, cov_Q: ArrayLike,
     Minimises ``Σᵢ rᵢᵀ (C_Qᵢ + R C_Pᵢ Rᵀ)⁻¹ rᵢ`` with ``rᵢ = Qᵢ − R Pᵢ − t`` by Gauss–Newton on
     ``R ← exp([δθ×]) R``, ``t ← t + δt`` (the residual covariance is refreshed every iteration).
     Eliminating the unknown true points from the errors-in-variables likelihood gives exactly this
-    cost, so at convergence the inverse Gauss–Newton information is the Cramér–Rao bound of
-    :func:`reconstruction.accuracy.attitude_increment_crlb` evaluated at the estimate; it is
-    returned as ``cov``.  Inliers are re-selected every iteration by the chi-square gate.
+    cost; its step takes the lever arms at those eliminated points' estimates (:func:`_lever_H`),
+    which makes the fixed point the cost's minimum, and at convergence the inverse Gauss–Newton
+    information is the Cramér–Rao bound of :func:`reconstruction.accuracy.attitude_increment_crlb`
+    evaluated at the estimate; it is returned as ``cov``.  Inliers are re-selected every iteration
+    by the chi-square gate.
 
     Parameters
     ----------
