@@ -296,8 +296,10 @@ class AttitudeSmoother:
         ``cov_N``.  ``remainder_N``, when given, is that remainder computed by the caller from the
         point subsets the registration used (:mod:`closed_loop.smoothing_loop` does; with the
         exact maximum-likelihood fit its residual against the truth has NEES 2.5–3.4,
-        docs/closed_loop.md).  ``inflation`` multiplies the remainder (a closure shares its keyframe's
-        points with the keyframe's other closures, a correlation the graph does not hold).  Call :meth:`gate` first; this adds unconditionally (Huber-robust).
+        docs/closed_loop.md), kept at least 1 % of ``cov_N`` in every direction.  ``inflation``
+        multiplies the remainder (a closure shares its keyframe's points with the keyframe's other
+        closures, a correlation the graph does not hold).  Call :meth:`gate` first; this adds
+        unconditionally (Huber-robust).
         """
         dR = np.asarray(dR_N, float)
         cov = 0.5 * (np.asarray(cov_N, float) + np.asarray(cov_N, float).T)

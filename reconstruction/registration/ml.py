@@ -187,8 +187,6 @@ def fit_rigid_ml(P: ArrayLike, Q: ArrayLike, cov_P: ArrayLike, cov_Q: ArrayLike,
     )
 
 
-
-
 def _lever_H(R: np.ndarray, P: np.ndarray, cov_P: np.ndarray, W: np.ndarray, r: np.ndarray) -> np.ndarray:
     """The rotated best estimate of the true points, ``R X̂ = R P + R C_P Rᵀ W r`` (B, N, 3), m.
 
@@ -199,7 +197,7 @@ def _lever_H(R: np.ndarray, P: np.ndarray, cov_P: np.ndarray, W: np.ndarray, r: 
     ``Σ Jᵢᵀ Wᵢ Jᵢ`` with that same lever arm.  Taking the noisy ``R Pᵢ`` instead (iteratively
     reweighted least squares, which treats ``W`` as fixed) correlates the lever arm with the residual
     through ``R C_P Rᵀ W``; where the clouds' covariances are elongated along the line of sight and
-    the target turns between the epochs, that biases the rotation by about half its own σ (3 views
+    the target turns between the epochs, that biases the rotation by about half its own σ (2 views
     at 70 m / 5°, measured against the truth).
     """
     Ca = R[:, None] @ cov_P @ np.swapaxes(R, -1, -2)[:, None]
