@@ -136,12 +136,14 @@ def _shared_ratio_matches(dp: list, dn: list, vp: list, vn: list, VP: np.ndarray
             continue
         k = min(_K_SHARED, cols.size)
         dist, nidx = _knn(dp[p][rows], dn[p][cols], k)
-        pad = _K_SHARED - k
         valid = nidx >= 0
-        cand = np.where(valid, off_n[p] + cols[np.maximum(nidx, 0)], -1)  # stacked indices at t + Δt
+        cand = np.full((rows.size, _K_SHARED), -1)                       # stacked indices at t + Δt
+        cand[:, :k] = np.where(valid, off_n[p] + cols[np.maximum(nidx, 0)], -1)
+        dist_k = np.full((rows.size, _K_SHARED), np.inf)
+        dist_k[:, :k] = dist
         rows_all.append(off_p[p] + rows)
-        dist_all.append(np.pad(dist, ((0, 0), (0, pad)), constant_values=np.inf))
-        cand_all.append(np.pad(cand, ((0, 0), (0, pad)), constant_values=-1))
+        dist_all.append(dist_k)
+        cand_all.append(cand)
         full_all.append(valid[:, -1])
     if not rows_all:
         return
@@ -372,9 +374,10 @@ def _not_duplicates(ip: np.ndarray, jn: np.ndarray, pid: np.ndarray, off_p: np.n
     Xp = np.empty((ip.size, 3))
     Xn = np.empty((ip.size, 3))
     r = np.zeros(ip.size)
-    for q in np.unique(p):
+    by_pair = np.argsort(p, kind="stable")
+    qs, starts = np.unique(p[by_pair], return_index=True)
+    for q, sel in zip(qs, np.split(by_pair, starts[1:]), strict=True):   # the rows of pair q
         a, b = pairs[q]
-        sel = p == q
         Xp[sel] = Xs[a][ip[sel] - off_p[q]]
         Xn[sel] = Xs[b][jn[sel] - off_n[q]]
         if res[a] is not None:

@@ -1,9 +1,9 @@
 """Multi-view triangulation with per-point covariance (003 §1.4, eq (4)–(8)).
 
-The paper's weighted algebraic least squares (003 eq 4–6) is solved as the standard homogeneous
-DLT on normalised image coordinates (flag P003-3 (d), docs/papers.md#p003-3), then refined by
-Gauss–Newton on
-the reprojection error in pixels, which is the maximum-likelihood estimate under Gaussian pixel
+The paper's weighted algebraic least squares (003 eq 4–6) is set up as the standard DLT on
+normalised image coordinates (flag P003-3 (d), docs/papers.md#p003-3), solved linearly with the
+homogeneous coordinate fixed at 1 (a 3×3 closed form), then refined by Gauss–Newton on the
+reprojection error in pixels, which is the maximum-likelihood estimate under Gaussian pixel
 noise.  The inverse Gauss–Newton information is the point's 3×3 covariance (first order; it equals
 the Cramér–Rao bound of :func:`reconstruction.accuracy.point_covariance` at the estimate).
 
@@ -125,7 +125,8 @@ class Triangulation:
 
 def _solve(uv: np.ndarray, w: np.ndarray, K: np.ndarray, T: np.ndarray, Kinv: np.ndarray,
            iterations: int) -> tuple[np.ndarray, ...]:
-    """Normalised DLT + Gauss–Newton for points ``(..., n, 2)`` with information weights ``w``.
+    """Normalised DLT (linear, homogeneous coordinate fixed) + Gauss–Newton for points ``(..., n, 2)``
+    with information weights ``w``.
 
     ``K, T, Kinv`` broadcast against ``uv[..., :, None, None]`` (shape ``(..., n, 3|4, 3|4)``).
     ``w`` is ``(..., n)``: camera weight / σ², 0 for absent views.  Returns the point, its
@@ -143,41 +144,58 @@ def _solve(uv: np.ndarray, w: np.ndarray, K: np.ndarray, T: np.ndarray, Kinv: np
     col = np.sqrt(np.sum(A * A, axis=-2)) + 1e-300  # column equilibration
     A = A / col[..., None, :]
     AtA = np.swapaxes(A, -1, -2) @ A
-    _, vecs = np.linalg.eigh(AtA)
-    Xh = vecs[..., :, 0] / col
+    # the DLT rows solved with the (equilibrated) homogeneous coordinate fixed at 1: the 3×3 normal
+    # equations S y = −b of AᵀA = [[S, b], [bᵀ, c]] in closed form, a start as good as the smallest
+    # eigenvector's for points at finite range (Gauss–Newton converges from either to the same
+    # point, to its tolerance) at a fraction of a batched eigh; parallel rays give a singular S
+    # (NaN or a far point, flagged degenerate below)
+    S_inv, _ = sym3_inv(AtA[..., :3, :3])
     with np.errstate(divide="ignore", invalid="ignore"):
-        X = Xh[..., :3] / Xh[..., 3:4]
+        X = -(S_inv @ AtA[..., :3, 3:4])[..., 0] * (col[..., 3:4] / col[..., :3])
     # --- Gauss–Newton on the reprojection error (pixels), each point until its own step is below
     # 1e-9 (1 + |X|): only the points still moving are iterated (a point's result does not depend
     # on the other points of the batch)
     batch = X.shape[:-1]
     X = np.array(np.broadcast_to(X, batch + (3,)))
-    shared = K.size == 9 * K.shape[-3] and T.size == 16 * T.shape[-3]  # one camera set for every point
-    Kb = K.reshape(K.shape[-3:]) if shared else np.broadcast_to(K, batch + K.shape[-3:])
-    Tb = T.reshape(T.shape[-3:]) if shared else np.broadcast_to(T, batch + T.shape[-3:])
+    P_px = K @ T[..., :3, :]                                    # camera matrices K [R | t], (..., n, 3, 4)
+    shared = P_px.size == 12 * P_px.shape[-3]                   # one camera set for every point
+    Pb = P_px.reshape(P_px.shape[-3:]) if shared else np.broadcast_to(P_px, batch + P_px.shape[-3:])
     uvb, wb = np.broadcast_to(uv, batch + uv.shape[-2:]), np.broadcast_to(w, batch + w.shape[-1:])
     act = np.nonzero(np.ones(batch, bool))
     for _ in range(iterations):
         if act[0].size == 0:
             break
-        Xa, wa = X[act], wb[act]
-        uvp, _, J = project(Xa[..., None, :], Kb if shared else Kb[act], Tb if shared else Tb[act])
-        r = np.where(wa[..., None] > 0, uvb[act] - uvp, 0.0)
-        JtW = np.swapaxes(J, -1, -2) * wa[..., None, None]
-        H = np.sum(JtW @ J, axis=-3)
-        g = np.sum((JtW @ r[..., None])[..., 0], axis=-2)
+        Xa = X[act]
+        _, H, g, _ = _reprojection_terms(Xa, Pb if shared else Pb[act], uvb[act], wb[act])
         Hinv, _ = sym3_inv(H)
         dX = (Hinv @ g[..., None])[..., 0]
         Xa = Xa + dX
         X[act] = Xa
         moving = np.any(np.abs(dX) > 1e-9 * (1.0 + np.abs(Xa)), axis=-1)
         act = tuple(a[moving] for a in act)
-    uvp, X_C, J = project(X[..., None, :], K, T)
-    r = np.where(w[..., None] > 0, uv - uvp, 0.0)
-    JtW = np.swapaxes(J, -1, -2) * w[..., None, None]
-    H = np.sum(JtW @ J, axis=-3)
+    r, H, _, depth = _reprojection_terms(X, P_px, uv, w)
     Hinv, det = sym3_inv(H)
-    return X, H, Hinv, det, r, X_C[..., 2]
+    return X, H, Hinv, det, r, depth
+
+
+def _reprojection_terms(X_W: np.ndarray, P_px: np.ndarray, uv: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Gauss–Newton terms of points ``X_W (..., 3)`` seen through camera matrices ``P_px = K [R | t]
+    (..., n, 3, 4)`` (K's last row ``[0, 0, 1]``): the residuals ``uv − π(X) (..., n, 2)`` (0 where
+    ``w`` is 0), the information ``Σ w Jᵀ J (..., 3, 3)``, the gradient ``Σ w Jᵀ r (..., 3)`` and the
+    depths ``(..., n)``, m.  The same quantities as :func:`reconstruction._geometry.project`, in
+    elementwise arithmetic (batched 3×3 products are slow on many tiny matrices)."""
+    X0, X1, X2 = (X_W[..., None, None, i] for i in range(3))
+    p = P_px[..., 0] * X0 + P_px[..., 1] * X1 + P_px[..., 2] * X2 + P_px[..., 3]   # (..., n, 3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_z = 1.0 / p[..., 2]
+    uvp = p[..., :2] * inv_z[..., None]
+    # ∂uv/∂X_W = (K[:2] − uv ⊗ K[2]) R / z = (P[:2, :3] − uv ⊗ P[2, :3]) / z
+    J = (P_px[..., :2, :3] - uvp[..., :, None] * P_px[..., 2:3, :3]) * inv_z[..., None, None]   # (..., n, 2, 3)
+    r = np.where(w[..., None] > 0, uv - uvp, 0.0)
+    Jw = J * w[..., None, None]
+    H = np.einsum("...vka,...vkb->...ab", Jw, J)
+    g = np.einsum("...vka,...vk->...a", Jw, r)
+    return r, H, g, p[..., 2]
 
 
 def _cloud_reason(code: np.ndarray) -> np.ndarray:

@@ -441,17 +441,19 @@ def _occlude(g: _Geometry, target: Target, feats: SurfaceFeatures, sun_T: np.nda
     import open3d as o3d
 
     vis = g.vis
-    side = np.where(g.cos_view >= 0, 1.0, -1.0)
     scene = target.scene
     eps = max(1e-3, 1e-4 * target.radius_m)
-    e_i, n_i, f_i = np.nonzero(vis)
-    if len(e_i):
-        org = feats.X_T[f_i] + eps * side[e_i, n_i, f_i, None] * feats.normal_T[f_i]
-        rays = np.empty((len(e_i), 6), dtype=np.float32)
+    at = np.flatnonzero(vis)                                            # flat (epoch, camera, feature)
+    if len(at):
+        N = vis.shape[2]
+        en_i, f_i = np.divmod(at, N)                                    # flat (epoch, camera), feature
+        side = np.where(np.take(g.cos_view, at) >= 0, 1.0, -1.0)
+        org = feats.X_T[f_i] + eps * side[:, None] * feats.normal_T[f_i]
+        rays = np.empty((len(at), 6), dtype=np.float32)
         rays[:, :3] = org
-        rays[:, 3:] = g.c_T[e_i, n_i] - org
+        rays[:, 3:] = g.c_T.reshape(-1, 3)[en_i] - org
         occ = scene.test_occlusions(o3d.core.Tensor(rays), tnear=0.0, tfar=1.0).numpy().astype(bool)
-        vis[e_i[occ], n_i[occ], f_i[occ]] = False
+        vis[np.unravel_index(at[occ], vis.shape)] = False
     # Sun shadow: once per (epoch, feature) that some camera still sees; the side facing the Sun is
     # the side facing the cameras that see it (the lit test above).
     e_s, f_s = np.nonzero(vis.any(axis=1))

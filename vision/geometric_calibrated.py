@@ -368,7 +368,8 @@ def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f
     u = u_det[f_i]
     if bound_view is not None:          # above the bound of its view bin: not detected, whatever the density
         det &= u < np.take(bound_view, cal.view_bin(cv_v) * N + f_i)
-    at, f_i, e_i, fp_v, cv_v, u = at[det], f_i[det], e_i[det], fp_v[det], cv_v[det], u[det]
+    sel = np.flatnonzero(det)
+    at, f_i, e_i, fp_v, cv_v, u = at[sel], f_i[sel], e_i[sel], fp_v[sel], cv_v[sel], u[sel]
     det = np.ones(len(at), dtype=bool)
     side_sun = np.where(cv_v >= 0, 1.0, -1.0) * np.take(g.cos_sun, e_i * N + f_i)
     can_lit = side_sun > 0
@@ -390,20 +391,23 @@ def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f
     return g, fp
 
 
-def _descriptors(labels: np.ndarray, feats, extra: dict, rng: np.random.Generator) -> np.ndarray:
+def _descriptors(labels: np.ndarray, feats, extra: tuple[np.ndarray, np.ndarray], rng: np.random.Generator) -> np.ndarray:
     """Descriptor of each state label: a feature's own (label < N) or a fresh unrelated unit vector
-    drawn the first time the label is seen."""
+    drawn the first time the label is seen (in increasing label order).  ``extra``: the trial's
+    descriptors of labels ``N, N + 1, …`` ``(L, D)`` and whether each is drawn yet ``(L,)`` (updated)."""
     N, D = feats.descriptors.shape
-    new = np.unique(labels[(labels >= N)])
-    new = new[[int(v) not in extra for v in new]] if new.size else new
-    if new.size:
-        d = rng.standard_normal((new.size, D)).astype(np.float32)
-        d /= np.linalg.norm(d, axis=1, keepdims=True)
-        extra.update(zip((int(v) for v in new), d, strict=True))
-    out = feats.descriptors[np.minimum(labels, N - 1)].copy()
-    fresh = np.nonzero(labels >= N)[0]
+    out = feats.descriptors[np.minimum(labels, N - 1)]
+    fresh = np.flatnonzero(labels >= N)
     if fresh.size:
-        out[fresh] = np.stack([extra[int(v)] for v in labels[fresh]])
+        store, drawn = extra
+        j = labels[fresh] - N
+        new = np.unique(j[~drawn[j]])
+        if new.size:
+            d = rng.standard_normal((new.size, D)).astype(np.float32)
+            d /= np.linalg.norm(d, axis=1, keepdims=True)
+            store[new] = d
+            drawn[new] = True
+        out[fresh] = store[j]
     return out
 
 
@@ -432,8 +436,10 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
     first = True
     state = cand_id.astype(np.int64)                                      # descriptor labels (< N: own)
     next_label = N
-    extra: dict = {}
+    extra = (np.empty((max(E - 1, 0) * C, D), np.float32), np.zeros(max(E - 1, 0) * C, bool))  # labels ≥ N
     prev = None                                                           # (R_CT (n,3,3), tracked, states)
+    off_diagonal, pairs = ~np.eye(n, dtype=bool)[None], np.triu_indices(n, 1)
+    radius_m = target.radius_m
     out: list[Observation] = []
     for k in range(E):
         if fsun[k] == 0.0 or g.in_fov[k].sum() < 2:
@@ -461,10 +467,11 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
             w_pair = rho_t * w_pair + a * rng.standard_normal(C)
             e_pair = rho_t * e_pair + a * rng.standard_normal((C, n, n))
         first = False
-        eps = np.triu(e_pair[two], 1) + np.swapaxes(np.triu(e_pair[two], 1), 1, 2)
+        eps = np.triu(e_pair[two], 1)
+        eps = eps + np.swapaxes(eps, 1, 2)
         z = math.sqrt(rho_c) * w_pair[two][:, None, None] + math.sqrt(1.0 - rho_c) * eps
         adj = det[two][:, :, None] & det[two][:, None, :] & (ndtr(z) < S)
-        adj &= ~np.eye(n, dtype=bool)[None]
+        adj &= off_diagonal
         members = _components(adj) & det[two]
         is_track = members.sum(axis=1) >= min_views
         fid = two[is_track]                                               # local (candidate) indices
@@ -508,8 +515,8 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         both = seen[:, :, None] & seen[:, None, :]
         angle = np.max(np.where(both, ang[None], 0.0), axis=(1, 2))
         cls = track_class(seen.sum(axis=1), n)[:, None]
-        infl = cal.sigma_inflation(fp_m, angle[:, None], cls)
-        infl_inc = np.minimum(cal.sigma_inflation(fp_m, angle[:, None], cls, increment=True), infl)
+        infl, infl_inc = cal.sigma_inflations(fp_m, angle[:, None], cls)
+        infl_inc = np.minimum(infl_inc, infl)
         sig = sig_size * np.sqrt(infl)
         uv_e += sig_size[..., None] * (np.sqrt(infl - infl_inc)[..., None] * e_kept[fid]
                                        + np.sqrt(infl_inc)[..., None] * rng.standard_normal(uv_e.shape))
@@ -522,10 +529,10 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         X_true = feats.X_T[gid].copy()
         prev = (g.R_CT[k], fid, state.copy())
         fp_med = float(np.median(fp_f[fid]))
-        fm = float(np.mean(cal.false_match_rate_at(fp_med, ang[np.triu_indices(n, 1)])))
+        fm = float(np.mean(cal.false_match_rate_at(fp_med, ang[pairs])))
         if fm > 0:
             keep_m = _false_matches(rng, fm, uv_e, seen, g.z[k][:, loc].T, cams, T[k], desc, ids, X_true,
-                                    target.radius_m, float(np.median(sig)), margin_px)
+                                    radius_m, float(np.median(sig)), margin_px)
             uv_e, desc, ids, X_true = uv_e[keep_m], desc[keep_m], ids[keep_m], X_true[keep_m]
             sig, size_px = sig[keep_m], size_px[keep_m]
         present = np.isfinite(uv_e).all(axis=-1)

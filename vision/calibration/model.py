@@ -292,21 +292,32 @@ class SiftCalibration:
         (largest angle between two of them, about the target) of class ``track_class`` (index into
         :data:`TRACK_CLASSES`): linear in angle and log footprint, held beyond the calibrated ones.
         ``increment``: the inflation of an inter-epoch increment instead of a triangulated point."""
+        tab = self.increment_sigma2_inflation if increment else self.sigma2_inflation
+        return self._inflation_at((tab,), footprint_m_per_px, angle_deg, track_class)[0]
+
+    def sigma_inflations(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike,
+                         track_class: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`sigma_inflation` of a triangulated point and of an increment at the same keypoints
+        (the interpolation weights computed once)."""
+        return self._inflation_at((self.sigma2_inflation, self.increment_sigma2_inflation),
+                                  footprint_m_per_px, angle_deg, track_class)
+
+    def _inflation_at(self, tables: tuple, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike,
+                      track_class: ArrayLike) -> list[np.ndarray]:
         fp, ang, c = np.broadcast_arrays(np.asarray(footprint_m_per_px, dtype=float),
                                          np.asarray(angle_deg, dtype=float), np.asarray(track_class, dtype=int))
-        tab = self.increment_sigma2_inflation if increment else self.sigma2_inflation
         grid = self.nees_angle_deg
         i, j, w = self._range_weights(fp)
         w = np.clip(w, 0.0, 1.0)
         if grid.size == 1:
-            return (1.0 - w) * tab[i, 0, c] + w * tab[j, 0, c]
+            return [(1.0 - w) * tab[i, 0, c] + w * tab[j, 0, c] for tab in tables]
         k = _bin_index(grid, ang, "left", 0, grid.size - 2)
         u = np.clip((ang - grid[k]) / (grid[k + 1] - grid[k]), 0.0, 1.0)
 
-        def at(r):
+        def at(tab, r):
             return (1.0 - u) * tab[r, k, c] + u * tab[r, k + 1, c]
 
-        return (1.0 - w) * at(i) + w * at(j)
+        return [(1.0 - w) * at(tab, i) + w * at(tab, j) for tab in tables]
 
     def track_sigma_px(self, obs, *, inflate: bool = True, increment: bool = False) -> np.ndarray:
         """``(M, n)`` σ per track and view of an observation (NaN where a track is absent): the size σ
