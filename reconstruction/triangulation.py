@@ -193,7 +193,8 @@ def _reprojection_terms(X_W: np.ndarray, P_px: np.ndarray, uv: np.ndarray, w: np
     J = (P_px[..., :2, :3] - uvp[..., :, None] * P_px[..., 2:3, :3]) * inv_z[..., None, None]   # (..., n, 2, 3)
     r = np.where(w[..., None] > 0, uv - uvp, 0.0)
     Jw = J * w[..., None, None]
-    H = np.einsum("...vka,...vkb->...ab", Jw, J)
+    rows = J.shape[:-3] + (2 * J.shape[-3], 3)                  # the 2n rows of every view together
+    H = np.swapaxes(Jw.reshape(rows), -1, -2) @ J.reshape(rows)
     g = np.einsum("...vka,...vk->...a", Jw, r)
     return r, H, g, p[..., 2]
 
