@@ -239,36 +239,49 @@ def epipolar_distance_px(F: ArrayLike, uv_A: ArrayLike, uv_B: ArrayLike) -> np.n
 # ----------------------------------------------------------------------------------------------
 
 
-def _knn(desc_a: np.ndarray, desc_b: np.ndarray, k: int, *, flann_trees: int, flann_checks: int):
-    """k approximate nearest neighbours (FLANN) in B of every descriptor of A.
-
-    Returns ``(idx (N, k), dist (N, k))`` with -1 / inf where fewer than k were found.
-    """
+def _flann_index(desc_b: np.ndarray, *, flann_trees: int, flann_checks: int):
+    """A FLANN matcher trained on the descriptors ``desc_b`` (non-empty): kd-trees, or LSH for binary ones."""
     import cv2
 
+    if desc_b.dtype == np.uint8:
+        index = {"algorithm": 6, "table_number": 6, "key_size": 12, "multi_probe_level": 1}  # LSH
+    else:
+        index = {"algorithm": 1, "trees": int(flann_trees)}                                # kd-tree
+    # FLANN's randomised kd-trees draw from OpenCV's (thread-local) RNG when they are built: seed it
+    # so that matching is reproducible (searching draws nothing, so a trained index can be reused).
+    cv2.setRNGSeed(0)
+    matcher = cv2.FlannBasedMatcher(index, {"checks": int(flann_checks)})
+    matcher.add([desc_b])
+    matcher.train()
+    return matcher
+
+
+def _knn(desc_a: np.ndarray, desc_b: np.ndarray, k: int, *, flann_trees: int, flann_checks: int,
+         index=None):
+    """k approximate nearest neighbours (FLANN) in B of every descriptor of A.
+
+    ``index``: :func:`_flann_index` of ``desc_b`` if already built.
+    Returns ``(idx (N, k), dist (N, k))`` with -1 / inf where fewer than k were found.
+    """
     n = len(desc_a)
     idx = np.full((n, k), -1, dtype=np.int64)
     dist = np.full((n, k), np.inf)
     if n == 0 or len(desc_b) == 0:
         return idx, dist
-    if desc_a.dtype == np.uint8:
-        index = {"algorithm": 6, "table_number": 6, "key_size": 12, "multi_probe_level": 1}  # LSH
-    else:
-        index = {"algorithm": 1, "trees": int(flann_trees)}                                # kd-tree
-    # FLANN's randomised kd-trees draw from OpenCV's (thread-local) RNG: seed it so that matching
-    # is reproducible.
-    cv2.setRNGSeed(0)
-    matcher = cv2.FlannBasedMatcher(index, {"checks": int(flann_checks)})
-    for i, ms in enumerate(matcher.knnMatch(desc_a, desc_b, k=min(k, len(desc_b)))):
-        for j, m in enumerate(ms[:k]):
-            idx[i, j] = m.trainIdx
-            dist[i, j] = m.distance
+    if index is None:
+        index = _flann_index(desc_b, flann_trees=flann_trees, flann_checks=flann_checks)
+    found = [(i, j, m.trainIdx, m.distance) for i, ms in enumerate(index.knnMatch(desc_a, k=min(k, len(desc_b))))
+             for j, m in enumerate(ms[:k])]
+    if found:
+        i, j, t, d = zip(*found, strict=True)
+        idx[i, j] = t
+        dist[i, j] = d
     return idx, dist
 
 
 def match_pair(kp_A: Keypoints, kp_B: Keypoints, *, ratio: float = 0.6, F_AB: ArrayLike | None = None,
                epipolar_tol_px: float = 1.5, guided: bool = False, guided_k: int = 16,
-               flann_trees: int = 4, flann_checks: int = 32) -> np.ndarray:
+               flann_trees: int = 4, flann_checks: int = 32, flann_index=None) -> np.ndarray:
     """Match two keypoint sets: FLANN nearest neighbours, Lowe's ratio test, epipolar gate, one-to-one.
 
     Two orders of the same three tests (003 §1.4 uses the epipolar constraint "to shrink the search
@@ -297,6 +310,9 @@ def match_pair(kp_A: Keypoints, kp_B: Keypoints, *, ratio: float = 0.6, F_AB: Ar
         Epipolar-guided search and its neighbour count.
     flann_trees, flann_checks : int
         FLANN kd-tree parameters (4 trees, 32 checks by default: our choice, 003 gives none).
+    flann_index : optional
+        A FLANN matcher already trained on ``kp_B``'s descriptors with these parameters
+        (:func:`match_views` reuses one per view); built here if None.
 
     Returns
     -------
@@ -315,7 +331,7 @@ def match_pair(kp_A: Keypoints, kp_B: Keypoints, *, ratio: float = 0.6, F_AB: Ar
     use_guided = guided and F_AB is not None
     k = int(guided_k) if use_guided else 2
     idx, dist = _knn(kp_A.descriptors, kp_B.descriptors, k, flann_trees=flann_trees,
-                     flann_checks=flann_checks)
+                     flann_checks=flann_checks, index=flann_index)
     if use_guided:
         valid = idx >= 0
         rows = np.repeat(np.arange(len(idx)), k).reshape(idx.shape)
@@ -457,13 +473,16 @@ def match_views(keypoints: Sequence[Keypoints], camera: PinholeCamera | Sequence
     K = np.stack([c.K for c in cams])
     Fs = {}
     pm = {}
+    index = {}                                 # FLANN index of view j, built once for all pairs (i, j)
     for i in range(n):
         for j in range(i + 1, n):
             Fs[i, j] = fundamental_from_poses(K[i], T[i], K[j], T[j])
+            if j not in index and len(kps[i]) and len(kps[j]):
+                index[j] = _flann_index(kps[j].descriptors, flann_trees=flann_trees, flann_checks=flann_checks)
             pm[i, j] = match_pair(kps[i], kps[j], ratio=ratio, F_AB=Fs[i, j],
                                   epipolar_tol_px=epipolar_tol_px, guided=guided,
                                   flann_trees=flann_trees,
-                                  flann_checks=flann_checks)
+                                  flann_checks=flann_checks, flann_index=index.get(j))
     tracks = tracks_from_matches([len(k) for k in kps], pm, min_views=min_views)
     M = len(tracks)
     uv = np.full((M, n, 2), np.nan)

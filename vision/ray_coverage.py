@@ -5,8 +5,10 @@ A ray through a pixel centre hits a triangle only if the centre lies in the tria
 triangles finds every hit of the whole ROI, and the renderer's images do not depend on it
 (:func:`vision.render.render_batch`).  :func:`coverage_mask` rasterises every projected triangle
 grown by ``pad_px`` (a pixel centre within ``pad_px`` of the triangle is covered; edge functions in a
-compiled loop, cached on disk by Numba) and dilates the result by 2 px, so it contains the pixels that
-OpenCV's ``fillConvexPoly`` would draw for the same triangles, dilated the same way.
+compiled loop, cached on disk by Numba).  Half a pixel is over a thousand times the disagreement of
+the float32 ray cast with the float64 projection (about 3 × 10⁻⁴ px at 40 m: float32 positions and
+directions, ~3000 px per radian); the earlier 1 px pad and 2-px dilation cast 15 % (40 m) to 29 %
+(80 m) more rays for the same hits.
 """
 
 from __future__ import annotations
@@ -42,7 +44,15 @@ def _raster_grown_triangles(u: np.ndarray, v: np.ndarray, triangles: np.ndarray,
         degenerate = abs(area2) <= 1e-9 * (l_ab * l_ab + l_bc * l_bc + l_ca * l_ca) + 1e-12
         s = 1.0 if area2 > 0 else -1.0
         for y in range(y_lo, y_hi + 1):
-            for x in range(x_lo, x_hi + 1):
+            # the columns where the three edge tests can hold (each is linear in x), a pixel wider on both
+            # sides; the exact tests below decide, so the pixels are those of a scan of the whole row
+            lo, hi = float(x_lo), float(x_hi)
+            if not degenerate:
+                lo, hi = _edge_span(lo, hi, xa, ya, xb, yb, y, s, pad_px * l_ab)
+                lo, hi = _edge_span(lo, hi, xb, yb, xc, yc, y, s, pad_px * l_bc)
+                lo, hi = _edge_span(lo, hi, xc, yc, xa, ya, y, s, pad_px * l_ca)
+            lo, hi = min(max(lo, x_lo - 2.0), x_hi + 2.0), max(min(hi, x_hi + 2.0), x_lo - 2.0)  # finite ints
+            for x in range(max(x_lo, int(math.floor(lo)) - 1), min(x_hi, int(math.ceil(hi)) + 1) + 1):
                 if degenerate or (
                         s * ((xb - xa) * (y - ya) - (yb - ya) * (x - xa)) >= -pad_px * l_ab
                         and s * ((xc - xb) * (y - yb) - (yc - yb) * (x - xb)) >= -pad_px * l_bc
@@ -50,8 +60,23 @@ def _raster_grown_triangles(u: np.ndarray, v: np.ndarray, triangles: np.ndarray,
                     cover[y, x] = 1
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _edge_span(lo: float, hi: float, xa: float, ya: float, xb: float, yb: float, y: float, s: float,
+               slack: float) -> tuple[float, float]:  # pragma: no cover - compiled
+    """``[lo, hi]`` narrowed to the x where ``s ((xb - xa)(y - ya) - (yb - ya)(x - xa)) >= -slack``."""
+    a = -s * (yb - ya)
+    c = s * (xb - xa) * (y - ya) + s * (yb - ya) * xa + slack
+    if a > 0.0:
+        lo = max(lo, -c / a)
+    elif a < 0.0:
+        hi = min(hi, -c / a)
+    elif c < 0.0:
+        hi = lo - 4.0                                     # no column passes this edge in this row
+    return lo, hi
+
+
 def coverage_mask(camera: PinholeCamera, target: Target, c_T: np.ndarray, R_TC: np.ndarray,
-                  box: tuple[int, int, int, int], *, pad_px: float = 1.0) -> np.ndarray | None:
+                  box: tuple[int, int, int, int], *, pad_px: float = 0.5) -> np.ndarray | None:
     """ROI pixels whose ray can hit the target, ``(h, w)`` bool over ``box``.
 
     Parameters
@@ -65,15 +90,13 @@ def coverage_mask(camera: PinholeCamera, target: Target, c_T: np.ndarray, R_TC: 
     box : (x0, y0, x1, y1)
         The ROI, pixels (half-open).
     pad_px : float
-        Pixel centres within this distance of a projected triangle are covered (before the 2-px dilation).
+        Pixel centres within this distance of a projected triangle are covered.
 
     Returns
     -------
     ndarray of bool, or None
         ``None`` (cast every ray of the ROI) when a vertex is not in front of the camera.
     """
-    import cv2
-
     X_C = (target.vertices_T - c_T) @ R_TC
     if np.any(X_C[:, 2] <= 1e-3):
         return None
@@ -83,4 +106,4 @@ def coverage_mask(camera: PinholeCamera, target: Target, c_T: np.ndarray, R_TC: 
     cover = np.zeros((y1 - y0, x1 - x0), np.uint8)
     _raster_grown_triangles(np.ascontiguousarray(u), np.ascontiguousarray(v),
                             np.ascontiguousarray(target.triangles, dtype=np.int64), float(pad_px), cover)
-    return cv2.dilate(cover, np.ones((5, 5), np.uint8)).astype(bool)
+    return cover.view(bool)

@@ -23,6 +23,7 @@ Frames: the target's centre of mass is the origin of the Hill frame H (= world W
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -332,6 +333,30 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
 # ----------------------------------------------------------------------------------------------
 
 
+@numba.njit(cache=True, nogil=True)
+def _mip_rho(plane_u: np.ndarray, plane_v: np.ndarray, flat: np.ndarray, ww: int,
+             rho: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:func:`_mip_level_at`'s texel footprint at each hit, in one compiled pass: the float32 distance to
+    each of the 4 neighbours (1e6 where it is NaN: off the target), the larger of the smaller vertical
+    and the smaller horizontal one, 1 where both directions have no neighbour (the float32 operations of
+    :func:`_mip_level`, no fused multiply-adds)."""
+    big = np.float32(1e6)
+    for i in range(flat.shape[0]):
+        f = flat[i]
+        r = max(min(_texel_step(plane_u, plane_v, f, ww, big), _texel_step(plane_u, plane_v, f, -ww, big)),
+                min(_texel_step(plane_u, plane_v, f, 1, big), _texel_step(plane_u, plane_v, f, -1, big)))
+        rho[i] = np.float32(1.0) if r >= big else r
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _texel_step(plane_u: np.ndarray, plane_v: np.ndarray, f: int, o: int,
+                big: np.float32) -> np.float32:  # pragma: no cover - compiled
+    du = plane_u[f + o] - plane_u[f]
+    dv = plane_v[f + o] - plane_v[f]
+    n = np.float32(np.sqrt(du * du + dv * dv))
+    return n if np.isfinite(n) else big
+
+
 def _mip_level_at(tex_hit: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """:func:`_mip_level` at the hit pixels ``(rows, cols)`` only, from their texel coordinates ``tex_hit``
     (``(N, 2)`` float32): the same float32 operations on the same neighbour differences, so the same values.
@@ -339,25 +364,16 @@ def _mip_level_at(tex_hit: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np
     The neighbours are read from two planes over the hits' bounding box padded by one NaN pixel (a
     neighbour off the target or off the ROI is NaN there, as in :func:`_mip_level`).
     """
-    big = np.float32(1e6)
     r0, c0 = int(rows.min()), int(cols.min())
     hh, ww = int(rows.max()) - r0 + 3, int(cols.max()) - c0 + 3
     flat = (rows - (r0 - 1)) * ww + (cols - (c0 - 1))
-    here = (tex_hit[:, 0], tex_hit[:, 1])
     planes = []
     for k in range(2):
         plane = np.full(hh * ww, np.nan, dtype=np.float32)
-        plane[flat] = here[k]
+        plane[flat] = tex_hit[:, k]
         planes.append(plane)
-
-    def norm_to(offset: int) -> np.ndarray:
-        du = planes[0][flat + offset] - here[0]
-        dv = planes[1][flat + offset] - here[1]
-        n = np.sqrt(du * du + dv * dv)
-        return np.where(np.isfinite(n), n, big)
-
-    rho = np.maximum(np.minimum(norm_to(ww), norm_to(-ww)), np.minimum(norm_to(1), norm_to(-1)))
-    rho = np.where(rho >= big, 1.0, rho)
+    rho = np.empty(len(flat), dtype=np.float32)
+    _mip_rho(planes[0], planes[1], flat, ww, rho)
     with np.errstate(divide="ignore"):
         return np.log2(np.maximum(rho, 1.0)).astype(np.float32)
 
@@ -438,7 +454,7 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
             cover = coverage_mask(cam, target, c_T, R_TC, box)
             if cover is None:
                 cover = np.ones((y1 - y0, x1 - x0), dtype=bool)
-            rows, cols = np.nonzero(cover)                              # row-major, as render's [hit]
+            rows, cols = np.divmod(np.flatnonzero(cover), cover.shape[1])  # row-major, as render's [hit]
             d_C = np.empty((len(rows), 3))
             d_C[:, 0] = (cols + x0 - cam.cx) / cam.fx
             d_C[:, 1] = (rows + y0 - cam.cy) / cam.fy
@@ -528,7 +544,8 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
         X_img.reshape(-1, 3)[flat] = v["X_hit"]
         tri_img.reshape(-1)[flat] = tid
         lit_img.reshape(-1)[flat] = lit & (f_sun > 0)
-        exposure = sensor.exposure_for(rad_roi)
+        # the positive radiances in raster order: the hits' alone (no ROI-sized mask) without the Earth
+        exposure = sensor.exposure_for(rad_roi if earth is not None else rad_roi.reshape(-1)[flat])
         image[...] = sensor.apply(rad_roi, rng=v["rng"], exposure_s=exposure, origin_px=(x0, y0))
         out.append(RenderResult(*a, v["box"], REASON_EARTH_SHADOW if f_sun == 0.0 else "", v["cam"], v["T"],
                                 exposure))
