@@ -401,14 +401,25 @@ def _matmul_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _row_norm(a: np.ndarray) -> np.ndarray:
-    """``np.linalg.norm(a, axis=1)`` of an ``(N, 3)`` array, with the same additions in the same order."""
-    return np.sqrt(_row_dot(a, a))
-
-
-def _row_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``np.sum(a * b, axis=1)`` of ``(N, 3)`` arrays, with the same additions in the same order."""
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+@numba.njit(cache=True, nogil=True)
+def _facing_normals(X: np.ndarray, c_T: np.ndarray, normals: np.ndarray, tid: np.ndarray, s_T: np.ndarray,
+                    n: np.ndarray, n_dot_h: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:func:`render`'s per-hit geometry in one pass, with its float64 operations in its order: the
+    unit view direction ``v = (c - X) / |c - X|``, the triangle normal turned towards the camera
+    (``n``), and ``n · h`` with the half vector ``h = (s + v) / max(|s + v|, 1e-12)`` (specular)."""
+    for i in range(X.shape[0]):
+        a0, a1, a2 = c_T[0] - X[i, 0], c_T[1] - X[i, 1], c_T[2] - X[i, 2]
+        r = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+        a0, a1, a2 = a0 / r, a1 / r, a2 / r
+        t = tid[i]
+        m0, m1, m2 = normals[t, 0], normals[t, 1], normals[t, 2]
+        if m0 * a0 + m1 * a1 + m2 * a2 < 0:
+            m0, m1, m2 = -m0, -m1, -m2
+        n[i, 0], n[i, 1], n[i, 2] = m0, m1, m2
+        h0, h1, h2 = s_T[0] + a0, s_T[1] + a1, s_T[2] + a2
+        r = np.sqrt(h0 * h0 + h1 * h1 + h2 * h2)
+        r = r if not r < 1e-12 else 1e-12                            # np.maximum: NaN stays NaN
+        n_dot_h[i] = m0 * (h0 / r) + m1 * (h1 / r) + m2 * (h2 / r)
 
 
 def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, q_HT: ArrayLike,
@@ -492,16 +503,14 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
         bary = uv_all[sl][got].astype(np.float64)
         X = target.point_on_triangles(tid, bary)
         z = _matmul_rows(X - v["c_T"], v["R_TC"])[:, 2]
-        vv = v["c_T"] - X
-        vv /= _row_norm(vv)[:, None]
-        n = target.triangle_normals_T[tid]
-        n = np.where((_row_dot(n, vv) < 0)[:, None], -n, n)
+        n, n_dot_h = np.empty_like(X), np.empty(len(X))
+        _facing_normals(X, v["c_T"], target.triangle_normals_T, tid, s_T, n, n_dot_h)
         tex_hit = target.texture_coords(tid, bary).astype(np.float32)
         level = _mip_level_at(tex_hit, rows, cols)
         albedo = target.sample_albedo(tex_hit, level, tid).astype(np.float64)
         cos_i = _matmul_rows(n, s_T)
         lit = cos_i > 0.0
-        v.update(tid=tid, X_hit=X, z=z, n=n, view_dir=vv, albedo=albedo, cos_i=cos_i, lit_hit=lit)
+        v.update(tid=tid, X_hit=X, z=z, n=n, n_dot_h=n_dot_h, albedo=albedo, cos_i=cos_i, lit_hit=lit)
         if shadows and lit.any():
             eps = max(1e-3, 1e-4 * target.radius_m)
             idx = np.nonzero(lit)[0]
@@ -526,9 +535,7 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
         if specular:
             ks = np.array([m.specular for m in target.materials])[target.triangle_material[tid]]
             ns = np.array([m.shininess for m in target.materials])[target.triangle_material[tid]]
-            hvec = s_T + v["view_dir"]
-            hvec /= np.maximum(_row_norm(hvec), 1e-12)[:, None]
-            L = L + ks * np.maximum(_row_dot(n, hvec), 0.0) ** ns * lit
+            L = L + ks * np.maximum(v["n_dot_h"], 0.0) ** ns * lit
         L = f_sun * L + ambient * albedo
         if earth is not None:
             L = L + albedo * earth.albedo_irradiance(_matmul_rows(n, R_HT.T), s_H)
