@@ -4,53 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
-from attitude.quaternion import matrix_from_quat
-from attitude.rigid_body import propagate_torque_free
-from closed_loop.smoother import AttitudeSmoother, SmootherSettings
 from closed_loop.torque_free_factor import InertiaShape, rotation_error_T
-
-# diag(1000, 800, 600) turned 25° about (1, 2, 3): the body frame is not the principal frame
-J_T = np.array([[954.613, 67.899, -85.132], [67.899, 823.754, -0.428], [-85.132, -0.428, 621.633]])
-SIGMA = np.deg2rad(0.3)
-
-
-def _truth(duration_s: float):
-    t = np.arange(0.0, duration_s + 0.25, 0.5)
-    q, w = propagate_torque_free(np.array([1.0, 0.0, 0.0, 0.0]), np.deg2rad([5.0, 5.0, 5.0]), J_T, t)
-    return t, matrix_from_quat(q), w
+from experiments.studies.smoother_consistency import J_T, synthetic_run
 
 
 def _run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, wrong_at: int | None = None):
-    """Increments every epoch and a closure 40 s back every 4th, 0.3° noise; returns the smoother,
-    the truth and per-epoch NEES of the attitude and the rate."""
-    rng = np.random.default_rng(seed)
-    t, R, w = _truth(duration_s)
-    prior = np.diag([1.0, 0.9, 0.8]) if estimate_inertia else J_T
-    sm = AttitudeSmoother(J_prior_kg_m2=prior, settings=SmootherSettings(estimate_inertia=estimate_inertia))
-    sm.start(0.0, R[0], np.eye(3) * 1e-8, w[0] + rng.normal(size=3) * np.deg2rad(0.1),
-             np.eye(3) * np.deg2rad(0.1) ** 2)
-    C = np.eye(3) * SIGMA ** 2
-    nees = []
-    refused = []
-    for k in range(1, len(t)):
-        sm.add_epoch(t[k])
-        for j in [k - 1] + ([k - 80] if k >= 80 and k % 4 == 0 else []):
-            meas = Rotation.from_rotvec(rng.normal(size=3) * SIGMA).as_matrix() @ R[k] @ R[j].T
-            if sm.gate(j, k, meas, C).accepted:
-                sm.add_relative(j, k, meas, C)
-        if wrong_at is not None and k == wrong_at:
-            for wrong in (Rotation.from_rotvec([0.0, 0.0, np.pi]).as_matrix(),   # a symmetric face
-                          Rotation.from_rotvec(np.deg2rad([10.0, 0.0, 0.0])).as_matrix()):  # bad matches
-                g = sm.gate(0, k, wrong @ R[k] @ R[0].T, C)
-                refused.append(not g.accepted)
-        sm.update()
-        Re, we = sm.estimate(k)
-        Ca, Cw = sm.covariance_T(k)
-        e = rotation_error_T(Re[None], R[k][None])[0]
-        nees.append((e @ np.linalg.solve(Ca, e), (we - w[k]) @ np.linalg.solve(Cw, we - w[k])))
-    return sm, (t, R, w), np.array(nees), refused
+    """Increments every epoch and a closure 40 s back every 4th, 0.3° noise
+    (:func:`experiments.studies.smoother_consistency.synthetic_run`)."""
+    return synthetic_run(duration_s, estimate_inertia=estimate_inertia, seed=seed, sigma_deg=0.3, wrong_at=wrong_at)
 
 
 def test_known_inertia_chain_stays_accurate_and_consistent():
