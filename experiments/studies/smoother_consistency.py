@@ -2,13 +2,14 @@
 
 No images, no registration: the truth is diag(1000, 800, 600) kg m² turned 25° about (1, 2, 3)
 (the body frame is not the principal frame), 5 °/s about each axis, sampled every 0.5 s; every epoch
-gets a relative rotation to the previous one and every fourth a closure 40 s back, each with
+gets a relative rotation to the previous one and every fourth a closure 40 s back (both settable), each with
 isotropic Gaussian noise of ``sigma_deg`` drawn exactly as the smoother's noise model says.  With
 such measurements the only way to leave the NEES band is the estimator itself (its linearisation,
 its solver), which is what this study isolates (docs/closed_loop.md, "Consistency, measured").
 
     python -m experiments.studies.smoother_consistency --trials 10 --duration 90 --sigma-deg 0.05
     python -m experiments.studies.smoother_consistency --trials 10 --duration 90 --known-inertia
+    python -m experiments.studies.smoother_consistency --trials 10 --closure-lag 4 --closure-every 2   # early closures
     python -m experiments.studies.smoother_consistency --drift --seed 1      # iSAM2's cost against the truth's
 
 prints the share of epochs whose ``trials``-run average NEES (attitude, 3 dof) is inside its 95 %
@@ -49,11 +50,12 @@ def truth(duration_s: float, dt_s: float = 0.5) -> tuple[np.ndarray, np.ndarray,
 
 
 def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, sigma_deg: float = 0.3,
+                  closure_lag_s: float = 40.0, closure_every: int = 4,
                   wrong_at: int | None = None, settings: SmootherSettings | None = None,
                   after_update: Callable[[AttitudeSmoother, int], None] | None = None):
     """One smoother run on synthetic relative rotations (module docstring).
 
-    ``wrong_at``: at that epoch two wrong closures to epoch 0 (a 180° symmetric face and a 10°
+    Every ``closure_every``-th epoch also gets a closure ``closure_lag_s`` back.  ``wrong_at``: at that epoch two wrong closures to epoch 0 (a 180° symmetric face and a 10°
     corruption, each claiming ``sigma_deg``) are put to the gate, and whether each was refused is
     returned.  ``after_update(smoother, k)`` is called after each epoch's update.  Returns
     ``(smoother, (t, R_NT, ω), nees (T−1, 2): attitude and rate, refused)``.
@@ -67,10 +69,11 @@ def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, s
              np.eye(3) * np.deg2rad(0.1) ** 2)
     sigma = np.deg2rad(sigma_deg)
     C = np.eye(3) * sigma ** 2
+    lag = int(round(closure_lag_s / (t[1] - t[0])))
     nees, refused = [], []
     for k in range(1, len(t)):
         sm.add_epoch(t[k])
-        for j in [k - 1] + ([k - 80] if k >= 80 and k % 4 == 0 else []):
+        for j in [k - 1] + ([k - lag] if k >= lag and k % closure_every == 0 else []):
             meas = Rotation.from_rotvec(rng.normal(size=3) * sigma).as_matrix() @ R[k] @ R[j].T
             if sm.gate(j, k, meas, C).accepted:
                 sm.add_relative(j, k, meas, C)
@@ -89,23 +92,25 @@ def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, s
 
 
 def _nees_of_run(seed: int, *, duration_s: float, estimate_inertia: bool, sigma_deg: float,
-                 settings: SmootherSettings) -> np.ndarray:
+                 settings: SmootherSettings, closure_lag_s: float, closure_every: int) -> np.ndarray:
     return synthetic_run(duration_s, estimate_inertia=estimate_inertia, seed=seed, sigma_deg=sigma_deg,
-                         settings=settings)[2]
+                         settings=settings, closure_lag_s=closure_lag_s, closure_every=closure_every)[2]
 
 
 def monte_carlo(trials: int, duration_s: float, *, estimate_inertia: bool = True, sigma_deg: float = 0.3,
-                settings: SmootherSettings | None = None, workers: int = 2) -> np.ndarray:
+                settings: SmootherSettings | None = None, workers: int = 2, closure_lag_s: float = 40.0,
+                closure_every: int = 4) -> np.ndarray:
     """NEES ``(trials, T−1, 2)`` of runs with seeds ``0 … trials−1``."""
     run = partial(_nees_of_run, duration_s=duration_s, estimate_inertia=estimate_inertia, sigma_deg=sigma_deg,
-                  settings=settings or SmootherSettings())
+                  settings=settings or SmootherSettings(), closure_lag_s=closure_lag_s, closure_every=closure_every)
     if workers <= 1:
         return np.stack([run(s) for s in range(trials)])
     with ProcessPoolExecutor(workers) as pool:
         return np.stack(list(pool.map(run, range(trials))))
 
 
-def _drift(duration_s: float, seed: int, sigma_deg: float, settings: SmootherSettings) -> list[str]:
+def _drift(duration_s: float, seed: int, sigma_deg: float, settings: SmootherSettings, closure_lag_s: float,
+           closure_every: int) -> list[str]:
     """Per epoch (every 2nd), ``k: cost at iSAM2's estimate / cost at the truth`` for one run."""
     rows: list[str] = []
     t, R, w = truth(duration_s)
@@ -118,7 +123,7 @@ def _drift(duration_s: float, seed: int, sigma_deg: float, settings: SmootherSet
             rows.append(f"{k}: {at_est:.3g} / {sm.graph_error(R[:k + 1], w[:k + 1], J_true):.3g}")
 
     synthetic_run(duration_s, estimate_inertia=True, seed=seed, sigma_deg=sigma_deg, settings=settings,
-                  after_update=trace)
+                  closure_lag_s=closure_lag_s, closure_every=closure_every, after_update=trace)
     return rows
 
 
@@ -128,6 +133,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument("--duration", type=float, default=90.0, help="seconds")
     p.add_argument("--sigma-deg", type=float, default=0.3, help="σ of each relative rotation, deg")
     p.add_argument("--known-inertia", action="store_true")
+    p.add_argument("--closure-lag", type=float, default=40.0, help="how far back the closures reach, s")
+    p.add_argument("--closure-every", type=int, default=4, help="a closure every this many epochs")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--drift", action="store_true", help="one run: the graph's cost at iSAM2's estimate and at the truth")
     p.add_argument("--seed", type=int, default=1, help="the run of --drift")
@@ -145,10 +152,11 @@ def main(argv: Sequence[str] | None = None) -> None:
     settings = SmootherSettings(**over)
     if a.drift:
         print("epoch: cost at iSAM2's estimate / cost at the truth")
-        print("  ".join(_drift(a.duration, a.seed, a.sigma_deg, settings)))
+        print("  ".join(_drift(a.duration, a.seed, a.sigma_deg, settings, a.closure_lag, a.closure_every)))
         return
     nees = monte_carlo(a.trials, a.duration, estimate_inertia=not a.known_inertia, sigma_deg=a.sigma_deg,
-                       settings=settings, workers=a.workers)
+                       settings=settings, workers=a.workers, closure_lag_s=a.closure_lag,
+                       closure_every=a.closure_every)
     lo, hi = chi2.ppf([0.025, 0.975], 3 * a.trials) / a.trials
     avg = nees[:, :, 0].mean(0)
     print(f"{a.trials} runs of {a.duration:g} s, σ = {a.sigma_deg:g}°, inertia {'given' if a.known_inertia else 'estimated'}: "
