@@ -23,7 +23,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import fields
+from dataclasses import fields, replace
 from functools import partial
 
 import numpy as np
@@ -62,8 +62,7 @@ def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, s
     """
     rng = np.random.default_rng(seed)
     t, R, w = truth(duration_s)
-    s = settings or SmootherSettings()
-    s = SmootherSettings(**{f.name: getattr(s, f.name) for f in fields(s)} | {"estimate_inertia": estimate_inertia})
+    s = replace(settings or SmootherSettings(), estimate_inertia=estimate_inertia)
     sm = AttitudeSmoother(J_prior_kg_m2=PRIOR_J if estimate_inertia else J_T, settings=s)
     sm.start(0.0, R[0], np.eye(3) * 1e-8, w[0] + rng.normal(size=3) * np.deg2rad(0.1),
              np.eye(3) * np.deg2rad(0.1) ** 2)
@@ -140,15 +139,23 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument("--seed", type=int, default=1, help="the run of --drift")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="a SmootherSettings field")
     a = p.parse_args(argv)
+    for name, value, ok in (("--trials", a.trials, a.trials >= 1), ("--duration", a.duration, a.duration > 0),
+                            ("--sigma-deg", a.sigma_deg, a.sigma_deg > 0), ("--closure-lag", a.closure_lag, a.closure_lag > 0),
+                            ("--closure-every", a.closure_every, a.closure_every >= 1), ("--workers", a.workers, a.workers >= 1)):
+        if not ok:
+            p.error(f"{name}: must be positive, got {value!r}")
     known = {f.name: f.type for f in fields(SmootherSettings)}
     over = {}
     for item in a.set:
         name, _, value = item.partition("=")
         if name not in known:
             p.error(f"--set: {name!r} is not a SmootherSettings field ({', '.join(known)})")
-        over[name] = (value.lower() == "true") if known[name] in (bool, "bool") else float(value)
-        if known[name] in (int, "int"):
-            over[name] = int(over[name])
+        try:
+            over[name] = (value.lower() == "true") if known[name] in (bool, "bool") else float(value)
+            if known[name] in (int, "int"):
+                over[name] = int(over[name])
+        except ValueError:
+            p.error(f"--set: {name} needs a number, got {value!r}")
     settings = SmootherSettings(**over)
     if a.drift:
         print("epoch: cost at iSAM2's estimate / cost at the truth")
