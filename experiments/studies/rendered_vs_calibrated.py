@@ -120,6 +120,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("calibrated", type=Path, help="run directory of the calibrated geometric grid")
     ap.add_argument("--angle", type=float, default=10.0, help="line-of-sight angle of the second table, deg")
     args = ap.parse_args(argv)
+    for name in ("rendered", "calibrated"):
+        if not (getattr(args, name) / "sweep.zarr").is_dir():
+            ap.error(f"{name}: no sweep.zarr in {str(getattr(args, name))!r}")
     rendered, calibrated = cell_medians(_open(args.rendered)), cell_medians(_open(args.calibrated))
     print(summary_table(rendered, calibrated))
     print(f"\nAt γ = {args.angle:g}°, per cell: tracks per epoch, per-step RMS error, bound, steps refused:\n")
