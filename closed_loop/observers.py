@@ -220,15 +220,13 @@ class GeometricObserver(Observer):
         if self.noise_model != "calibrated":
             return _surface_features(self.target, int(self.n_features), "all")
         if self.calibrated_features == "texture":
-            from vision.texture_sites import footprint_level
+            from vision.geometric_calibrated import filler_feature_count
+            from vision.texture_sites import footprint_level, texture_sites
 
             T = np.asarray(T_CW, dtype=float)
             distance_m = np.linalg.norm(np.einsum("...ji,...j->...i", T[..., :3, :3], T[..., :3, 3]), axis=-1)
             f_px = float(np.sqrt(self.camera.K[0, 0] * self.camera.K[1, 1]))
             level = footprint_level(float(np.median(distance_m)) / f_px)
-            from vision.geometric_calibrated import filler_feature_count
-            from vision.texture_sites import texture_sites
-
             n_fill = filler_feature_count(self.camera, self.target, T, texture_sites(self.target, level))
             return _site_features(self.target, level, n_fill)
         if self.calibrated_features != "uniform":
