@@ -1,8 +1,8 @@
 """A factor-graph smoother of the target's attitude, rate and inertia shape (gtsam, iSAM2).
 
 States: the attitude at every epoch (``Y_k = R_TN(k)``), the body rate ``ω_k`` and the inertia
-shape (:class:`closed_loop.torque_free_factor.InertiaShape`: principal axes ``R_TP`` and two
-log-ratios).  Factors:
+shape as the tensor's five entries at trace 3 (:func:`closed_loop.torque_free_factor.tensor_from_entries`;
+reported as principal axes and ratios, :class:`closed_loop.torque_free_factor.InertiaShape`).  Factors:
 
 * a prior on the first epoch (the first frame defines the body frame, flag P003-14a,
   docs/papers.md#p003-14a) and on the inertia shape;
@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import A, B, L, W, Y
+from gtsam.symbol_shorthand import B, J, W, Y
 from scipy.stats import chi2
 
 from closed_loop.torque_free_factor import InertiaShape, propagate_batch, torque_free_factor
@@ -48,11 +48,12 @@ class SmootherSettings:
     Attributes
     ----------
     estimate_inertia : bool
-        Estimate the inertia shape (5 parameters) from a broad prior; else hold it at the given tensor.
-    inertia_prior_sigma_log : float
-        σ of the prior on each log-ratio when estimated.
-    inertia_prior_sigma_axes_rad : float
-        σ of the prior on the principal-axes rotation when estimated, rad.
+        Estimate the inertia shape (5 parameters: the tensor's entries at trace 3,
+        :func:`closed_loop.torque_free_factor.tensor_from_entries`) from a broad prior; else hold
+        it at the given tensor.
+    inertia_prior_sigma_entries : float
+        σ of the prior on each of those entries when estimated (the trace is 3: the moments are
+        about 1).
     process_sigma_attitude_rad : float
         Per-second σ of the attitude process noise (un-modelled torque), rad/√s.
     process_sigma_rate_rad_s : float
@@ -64,7 +65,7 @@ class SmootherSettings:
     relinearize_threshold : float
         iSAM2 relinearisation threshold of the attitudes (rad) and the rates (rad/s).
     relinearize_threshold_inertia : float
-        The same for the inertia shape (rad, log-ratio): every dynamics factor depends on it, so
+        The same for the inertia entries: every dynamics factor depends on it, so
         a finer threshold relinearises the whole graph at each update.
     relinearize_skip : int
         iSAM2 checks for relinearisation every this many updates.
@@ -79,8 +80,7 @@ class SmootherSettings:
     """
 
     estimate_inertia: bool = True
-    inertia_prior_sigma_log: float = 1.0
-    inertia_prior_sigma_axes_rad: float = 1.0
+    inertia_prior_sigma_entries: float = 0.5
     process_sigma_attitude_rad: float = 1e-6
     process_sigma_rate_rad_s: float = 1e-7
     gate_probability: float = 0.999
@@ -151,7 +151,7 @@ class AttitudeSmoother:
         p = gtsam.ISAM2Params()
         thr = gtsam.ISAM2ThresholdMap()
         fine, coarse = self.settings.relinearize_threshold, self.settings.relinearize_threshold_inertia
-        for ch, dim, th in (("y", 3, fine), ("b", 3, fine), ("w", 3, fine), ("a", 3, coarse), ("l", 2, coarse)):
+        for ch, dim, th in (("y", 3, fine), ("b", 3, fine), ("w", 3, fine), ("j", 5, coarse)):
             thr.insert((ch, np.full(dim, th)))
         p.setRelinearizeThreshold(thr)
         p.relinearizeSkip = int(self.settings.relinearize_skip)
@@ -187,12 +187,9 @@ class AttitudeSmoother:
         g.add(gtsam.PriorFactorVector(W(0), np.asarray(omega_TN_T0_rad_s, float),
                                       gtsam.noiseModel.Gaussian.Covariance(np.asarray(cov_omega_T, float))))
         if s.estimate_inertia:
-            g.add(gtsam.PriorFactorRot3(A(0), _rot(shape.R_TP),
-                                        gtsam.noiseModel.Isotropic.Sigma(3, s.inertia_prior_sigma_axes_rad)))
-            g.add(gtsam.PriorFactorVector(L(0), shape.log_ratios,
-                                          gtsam.noiseModel.Isotropic.Sigma(2, s.inertia_prior_sigma_log)))
-            v.insert(A(0), _rot(shape.R_TP))
-            v.insert(L(0), shape.log_ratios)
+            g.add(gtsam.PriorFactorVector(J(0), shape.entries,
+                                          gtsam.noiseModel.Isotropic.Sigma(5, s.inertia_prior_sigma_entries)))
+            v.insert(J(0), shape.entries)
         v.insert(Y(0), _rot(R0.T))
         v.insert(W(0), np.asarray(omega_TN_T0_rad_s, float))
         self._t = [float(t_s)]
@@ -212,8 +209,7 @@ class AttitudeSmoother:
         """The current estimate of the inertia shape (the prior's tensor when it is not estimated)."""
         if not self.settings.estimate_inertia:
             return InertiaShape.from_tensor(self.J_prior_kg_m2)
-        return InertiaShape(R_TP=self._isam.calculateEstimateRot3(A(0)).matrix(),
-                            log_ratios=self._isam.calculateEstimateVector(L(0)))
+        return InertiaShape.from_entries(self._isam.calculateEstimateVector(J(0)))
 
     def add_epoch(self, t_s: float) -> int:
         """A new epoch joined to the last by the dynamics factor, initialised by propagation; its index."""
@@ -226,7 +222,7 @@ class AttitudeSmoother:
         noise = gtsam.noiseModel.Diagonal.Sigmas(sig * np.sqrt(dt))
         n_sub = max(1, int(np.ceil(dt / 0.5)))
         if s.estimate_inertia:
-            f = torque_free_factor(noise, (Y(k - 1), W(k - 1), Y(k), W(k), A(0), L(0)), dt, n_substeps=n_sub)
+            f = torque_free_factor(noise, (Y(k - 1), W(k - 1), Y(k), W(k), J(0)), dt, n_substeps=n_sub)
         else:
             f = torque_free_factor(noise, (Y(k - 1), W(k - 1), Y(k), W(k)), dt, n_substeps=n_sub,
                                    J_T=np.asarray(self.J_prior_kg_m2, float))
@@ -390,8 +386,7 @@ class AttitudeSmoother:
         if self.settings.estimate_inertia:
             if inertia is None:
                 raise ValueError("inertia: required when the inertia shape is estimated")
-            v.insert(A(0), _rot(inertia.R_TP))
-            v.insert(L(0), np.asarray(inertia.log_ratios, float))
+            v.insert(J(0), inertia.entries)
         return float(self._all.error(v))
 
     def batch(self) -> tuple[np.ndarray, np.ndarray, InertiaShape]:
@@ -409,4 +404,4 @@ class AttitudeSmoother:
         w = np.stack([res.atVector(W(k)) for k in range(T)])
         if not self.settings.estimate_inertia:
             return R, w, self.inertia()
-        return R, w, InertiaShape(R_TP=res.atRot3(A(0)).matrix(), log_ratios=res.atVector(L(0)))
+        return R, w, InertiaShape.from_entries(res.atVector(J(0)))

@@ -2,15 +2,19 @@
 
 The target's body frame T is the first frame's (flag P003-14a, docs/papers.md#p003-14a), not its
 principal frame, so its inertia tensor in T is a full symmetric matrix.  Only its shape enters
-Euler's torque-free equation (003 eq 27, ``J ω̇ = −ω × J ω``), so it is described by five numbers:
-the orientation of the principal axes ``R_TP`` (a rotation, 3 parameters) and the logarithms of two
-principal-moment ratios ``l = (ln J₂/J₁, ln J₃/J₁)``:
+Euler's torque-free equation (003 eq 27, ``J ω̇ = −ω × J ω``): five numbers.  The graph estimates
+them as the tensor's own entries at trace 3 (:func:`tensor_from_entries`),
+``p = (J₁₁, J₂₂, J₁₂, J₁₃, J₂₃)`` with ``J₃₃ = 3 − J₁₁ − J₂₂``, because Euler's equation is linear in
+them: a short stretch of motion constrains ``p`` along a plane, where the principal axes and two
+moment ratios see a curved ridge on which the Gaussian approximation of a young estimate is far
+too confident (docs/closed_loop.md, "Consistency, measured").  :class:`InertiaShape` reports the
+same shape as principal axes ``R_TP`` and log-ratios ``l = (ln J₂/J₁, ln J₃/J₁)``:
 
 .. math::  J_T = R_{TP}\\,\\mathrm{diag}(1, e^{l_1}, e^{l_2})\\,R_{TP}^\\mathsf{T}.
 
 Variables of the graph (gtsam keys): ``Y_k = R_TN(k)`` (:class:`gtsam.Rot3`, the transpose of the
 attitude ``R_NT`` so that a registered increment is a plain :class:`gtsam.BetweenFactorRot3`),
-``ω_k`` (body rate, rad/s, ``Vector3``), ``R_TP`` (``Rot3``) and ``l`` (``Vector2``).
+``ω_k`` (body rate, rad/s, ``Vector3``) and ``p`` (``Vector5``).
 
 The factor compares epoch ``k+1`` with the RK4 propagation of epoch ``k`` (003 eq 25–27):
 
@@ -31,9 +35,9 @@ import numpy as np
 
 from attitude.batch import matrices_from_rotvecs, rotvecs_from_matrices
 
-__all__ = ["InertiaShape", "torque_free_factor", "propagate_batch", "rotation_error_T"]
+__all__ = ["InertiaShape", "torque_free_factor", "propagate_batch", "rotation_error_T", "tensor_from_entries"]
 
-_H = 1e-6  # finite-difference step (rad, rad/s, log-ratio)
+_H = 1e-6  # finite-difference step (rad, rad/s, tensor entry)
 
 
 @dataclass(frozen=True)
@@ -66,10 +70,41 @@ class InertiaShape:
             V[:, 2] = -V[:, 2]
         return cls(R_TP=V, log_ratios=np.log(m[1:] / m[0]))
 
+    @property
+    def entries(self) -> np.ndarray:
+        """The tensor's five free entries ``(J₁₁, J₂₂, J₁₂, J₁₃, J₂₃)`` at trace 3 (:func:`tensor_from_entries`)."""
+        J = self.J_T * (3.0 / np.trace(self.J_T))
+        return np.array([J[0, 0], J[1, 1], J[0, 1], J[0, 2], J[1, 2]])
+
+    @classmethod
+    def from_entries(cls, entries: np.ndarray) -> InertiaShape:
+        """The shape of the trace-3 tensor with these five entries (:func:`tensor_from_entries`)."""
+        return cls.from_tensor(tensor_from_entries(np.asarray(entries, float)[None])[0])
+
     def principal_moments(self) -> np.ndarray:
         """Sorted principal moments ``(3,)`` with the smallest equal to 1."""
         m = np.sort(np.linalg.eigvalsh(self.J_T))
         return m / m[0]
+
+
+def tensor_from_entries(p: np.ndarray, floor: float = 0.05) -> np.ndarray:
+    """Trace-3 tensors ``(M, 3, 3)`` from their entries ``(M, 5)``: ``(J₁₁, J₂₂, J₁₂, J₁₃, J₂₃)``, ``J₃₃ = 3 − J₁₁ − J₂₂``.
+
+    Euler's equation ``J ω̇ = −ω × Jω`` is linear in these entries, so a short stretch of motion
+    constrains them linearly, where the principal axes and log-ratios see a curved ridge.  A wild
+    iterate that is not positive definite has its eigenvalues raised to ``floor`` (the prior and the
+    data pull it back).
+    """
+    J = np.empty((p.shape[0], 3, 3))
+    J[:, 0, 0], J[:, 1, 1], J[:, 2, 2] = p[:, 0], p[:, 1], 3.0 - p[:, 0] - p[:, 1]
+    J[:, 0, 1] = J[:, 1, 0] = p[:, 2]
+    J[:, 0, 2] = J[:, 2, 0] = p[:, 3]
+    J[:, 1, 2] = J[:, 2, 1] = p[:, 4]
+    m, V = np.linalg.eigh(J)
+    bad = m[:, 0] < floor
+    if np.any(bad):
+        J[bad] = (V[bad] * np.maximum(m[bad], floor)[:, None, :]) @ np.swapaxes(V[bad], 1, 2)
+    return J
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -135,7 +170,6 @@ def rotation_error_T(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
 
 
 _EXP_MINUS_H = matrices_from_rotvecs(-_H * np.eye(3))
-_EXP_PLUS_H = matrices_from_rotvecs(_H * np.eye(3))
 
 
 def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, ...], dt_s: float, *,
@@ -146,8 +180,8 @@ def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, ...], dt_s
     ----------
     noise : gtsam.noiseModel.Base
         6-dimensional noise of ``[attitude (rad), rate (rad/s)]``.
-    keys : (Y_k, ω_k, Y_{k+1}, ω_{k+1}, R_TP, l) or (Y_k, ω_k, Y_{k+1}, ω_{k+1})
-        gtsam keys of the two epochs' states and of the inertia shape (without it: ``J_T`` given).
+    keys : (Y_k, ω_k, Y_{k+1}, ω_{k+1}, p) or (Y_k, ω_k, Y_{k+1}, ω_{k+1})
+        gtsam keys of the two epochs' states and of the inertia entries (without them: ``J_T`` given).
     dt_s : float
         Time between the epochs, s.
     n_substeps : int
@@ -161,8 +195,8 @@ def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, ...], dt_s
     """
     eye = np.eye(3)
     known = J_T is not None
-    if known != (len(keys) == 4) or (not known and len(keys) != 6):
-        raise ValueError(f"keys: expected 4 keys with J_T or 6 without, got {len(keys)}")
+    if len(keys) != (4 if known else 5):
+        raise ValueError(f"keys: expected 4 keys with J_T or 5 without, got {len(keys)}")
     J_known = None if J_T is None else np.asarray(J_T, float)
 
     def error(this: gtsam.CustomFactor, values: gtsam.Values, H: list[np.ndarray] | None) -> np.ndarray:
@@ -184,18 +218,11 @@ def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, ...], dt_s
         if known:
             J = np.broadcast_to(J_known, (M, 3, 3))
         else:
-            A = values.atRot3(ks[4]).matrix()
-            Ab = np.empty((M, 3, 3))
-            Ab[:] = A
-            lb = np.empty((M, 2))
-            lb[:] = values.atVector(ks[5])
+            pb = np.empty((M, 5))
+            pb[:] = values.atVector(ks[4])
             if want:
-                Ab[7:10] = A @ _EXP_PLUS_H
-                lb[10:12] += _H * np.eye(2)
-            # ratios beyond e^±4 are not a rigid body (triangle inequality): clipping only keeps a
-            # wild Gauss-Newton iterate finite, the prior and the data pull it back
-            diag = np.concatenate([np.ones((M, 1)), np.exp(np.clip(lb, -4.0, 4.0))], -1)
-            J = (Ab * diag[:, None, :]) @ np.swapaxes(Ab, 1, 2)
+                pb[7:12] += _H * np.eye(5)
+            J = tensor_from_entries(pb)
         Rp, wp = propagate_batch(Rb, wb, J, dt_s, n_substeps)
         r_att = rotvecs_from_matrices(np.swapaxes(Rp, -1, -2) @ R1)
         r = np.concatenate([r_att, w1[None] - wp], -1)
@@ -208,8 +235,7 @@ def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, ...], dt_s
             H[2] = np.vstack([(r_eps - r_att[0]).T / _H, np.zeros((3, 3))])
             H[3] = np.vstack([np.zeros((3, 3)), eye])
             if not known:
-                H[4] = D[:, 6:9]
-                H[5] = D[:, 9:11]
+                H[4] = D[:, 6:11]
         return r[0]
 
     return gtsam.CustomFactor(noise, list(keys), error)

@@ -27,8 +27,9 @@ def test_known_inertia_chain_stays_accurate_and_consistent():
 
 @pytest.mark.slow
 def test_inertia_shape_is_recovered_from_relative_rotations():
-    """150 s with the inertia estimated from a broad prior (ratios e^±1): the two ratios and the
-    principal axes of a tensor that is not diagonal in the body frame; measured 0.02 % / 0.15°."""
+    """150 s with the inertia estimated from a broad prior (σ 0.5 on each trace-3 tensor entry): the
+    two ratios and the principal axes of a tensor that is not diagonal in the body frame; measured
+    0.024 % / 0.20°."""
     sm, (t, R, w), nees, _ = _run(150.0, estimate_inertia=True)
     est, true = sm.inertia(), InertiaShape.from_tensor(J_T)
     assert np.allclose(est.principal_moments(), true.principal_moments(), rtol=0.01)
@@ -51,8 +52,8 @@ def test_wrong_closures_are_refused_and_leave_the_estimate_unharmed():
 
 def test_batch_solve_reaches_a_minimum_while_the_inertia_is_learnt():
     """22 s with the inertia estimated: between the warm-up re-solves iSAM2's estimate drifts far from
-    the optimum (the dynamics factors' σ ≈ 1e-6 make the problem stiff; measured cost 1e5–1e9 against
-    ≈ 50 at the truth).  The batch Levenberg–Marquardt solve must get back below the truth's cost (a
+    the optimum (the dynamics factors' σ ≈ 1e-6 make the problem stiff; measured cost 8e5 against
+    54 at the truth).  The batch Levenberg–Marquardt solve must get back below the truth's cost (a
     minimiser cannot cost more than any other point); with gtsam's default damping (λ·I capped at
     1e5) it stayed where it started."""
     sm, (t, R, w), _, _ = _run(22.0, estimate_inertia=True, seed=1)
@@ -65,3 +66,14 @@ def test_batch_solve_reaches_a_minimum_while_the_inertia_is_learnt():
     assert drifted > 100 * at_truth
     assert solved <= at_truth
     assert np.allclose(inertia.principal_moments(), InertiaShape.from_tensor(J_T).principal_moments(), rtol=0.05)
+
+
+def test_young_inertia_estimate_is_not_overconfident():
+    """The first 30 s of learning the inertia, with closures 4 s back at every second epoch and 0.05°
+    links (seeds 0–9): the attitude NEES averaged over the runs and the epochs from 10 s on must lie
+    within [1.5, 4.5] (3 for a consistent estimator; measured 3.19).  With the inertia estimated as
+    principal axes and log-ratios, whose posterior is a curved ridge while the data are few, it was
+    7.27 (docs/closed_loop.md, "Consistency, measured")."""
+    nees = np.stack([synthetic_run(30.0, estimate_inertia=True, seed=s, sigma_deg=0.05, closure_lag_s=4.0,
+                                   closure_every=2)[2] for s in range(10)])
+    assert 1.5 < nees[:, 19:, 0].mean() < 4.5
