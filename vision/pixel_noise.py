@@ -21,6 +21,7 @@ noise the same pixels get in the full frame, and the draws are vectorised over a
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -37,14 +38,40 @@ _TWO_PI = 2.0 * np.pi
 
 def _splitmix64(key: int, counter: np.ndarray) -> np.ndarray:
     """SplitMix64 output number ``counter + 1`` of the stream seeded with ``key`` (uint64, wrapping)."""
-    z = (counter.astype(np.uint64) + np.uint64(1)) * _GAMMA
-    z += np.uint64(int(key) & 0xFFFF_FFFF_FFFF_FFFF)
-    z ^= z >> np.uint64(30)
-    z *= _MIX1
-    z ^= z >> np.uint64(27)
-    z *= _MIX2
-    z ^= z >> np.uint64(31)
+    c = np.ascontiguousarray(counter, dtype=np.uint64)
+    z = np.empty_like(c)
+    _splitmix64_into(np.uint64(int(key) & 0xFFFF_FFFF_FFFF_FFFF), c.reshape(-1), z.reshape(-1))
     return z
+
+
+@numba.njit(cache=True, nogil=True)
+def _splitmix64_into(key: np.uint64, counter: np.ndarray, z: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:func:`_splitmix64` of each counter, in one compiled pass."""
+    for i in range(counter.shape[0]):
+        z[i] = _mix(key, counter[i])
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _mix(key: np.uint64, counter: np.uint64) -> np.uint64:  # pragma: no cover - compiled
+    """SplitMix64 of one counter (uint64 arithmetic, wrapping)."""
+    x = (counter + np.uint64(1)) * _GAMMA + key
+    x ^= x >> np.uint64(30)
+    x *= _MIX1
+    x ^= x >> np.uint64(27)
+    x *= _MIX2
+    x ^= x >> np.uint64(31)
+    return x
+
+
+@numba.njit(cache=True, nogil=True)
+def _box_muller_uniforms(key: np.uint64, rows: np.ndarray, cols: np.ndarray, u1: np.ndarray,
+                         u2: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:func:`pixel_normals`' two uniforms of each pixel from its counter ``row · 2³² + col``, in one pass:
+    ``u1`` in (0, 1] from the high 32 bits of the SplitMix64 word, ``u2`` in [0, 1) from the low 32."""
+    for i in range(rows.shape[0]):
+        h = _mix(key, (np.uint64(rows[i]) << np.uint64(32)) | np.uint64(cols[i]))
+        u1[i] = (np.float64(h >> np.uint64(32)) + 0.5) * 2.0 ** -32
+        u2[i] = np.float64(h & np.uint64(0xFFFF_FFFF)) * 2.0 ** -32
 
 
 def _uniform_open(bits: np.ndarray) -> np.ndarray:
@@ -57,13 +84,13 @@ def pixel_normals(key: int, rows: ArrayLike, cols: ArrayLike) -> np.ndarray:
 
     The value of a pixel depends only on ``key`` and its position (see the module docstring).
     """
-    r = np.asarray(rows, dtype=np.int64)
-    c = np.asarray(cols, dtype=np.int64)
+    r, c = (np.ascontiguousarray(a) for a in np.broadcast_arrays(np.asarray(rows, dtype=np.int64),
+                                                                  np.asarray(cols, dtype=np.int64)))
     if np.any(r < 0) or np.any(c < 0) or np.any(c >= 2 ** 32):
         raise ValueError("rows and cols must be non-negative pixel indices (cols < 2**32)")
-    h = _splitmix64(key, (r.astype(np.uint64) << np.uint64(32)) | c.astype(np.uint64))
-    u1 = ((h >> np.uint64(32)).astype(np.float64) + 0.5) * 2.0 ** -32
-    u2 = (h & np.uint64(0xFFFF_FFFF)).astype(np.float64) * 2.0 ** -32
+    u1, u2 = np.empty(r.shape), np.empty(r.shape)
+    _box_muller_uniforms(np.uint64(int(key) & 0xFFFF_FFFF_FFFF_FFFF), r.reshape(-1), c.reshape(-1),
+                         u1.reshape(-1), u2.reshape(-1))
     # sqrt(-2 log u1) cos(2 pi u2), in place (the same operations without four temporaries)
     z = np.log(u1, out=u1)
     z *= -2.0

@@ -31,7 +31,7 @@ from attitude.quaternion import check_quat, matrix_from_quat
 from vision.camera import PinholeCamera, check_pose
 from vision.earth import EarthScene
 from vision.observation import REASON_EARTH_SHADOW, REASON_OUTSIDE_FOV
-from vision.ray_coverage import coverage_mask
+from vision.ray_coverage import coverage_mask, covered_rays
 from vision.render_result import RenderResult
 from vision.sensor import SensorModel
 from vision.target import Target
@@ -334,46 +334,45 @@ def render(camera: PinholeCamera, T_CW: ArrayLike, target: Target, q_HT: ArrayLi
 
 
 @numba.njit(cache=True, nogil=True)
-def _mip_rho(plane_u: np.ndarray, plane_v: np.ndarray, flat: np.ndarray, ww: int,
+def _mip_rho(tex: np.ndarray, flat: np.ndarray, cols: np.ndarray, w: int,
              rho: np.ndarray) -> None:  # pragma: no cover - compiled
-    """:func:`_mip_level_at`'s texel footprint at each hit, in one compiled pass: the float32 distance to
-    each of the 4 neighbours (1e6 where it is NaN: off the target), the larger of the smaller vertical
-    and the smaller horizontal one, 1 where both directions have no neighbour (the float32 operations of
-    :func:`_mip_level`, no fused multiply-adds)."""
+    """:func:`_mip_level_at`'s texel footprint at each hit, in one compiled pass over the hits in raster
+    order (``flat`` ascending): the float32 distance to each of the 4 neighbours (1e6 where it is not a
+    hit: off the target or off the ROI), the larger of the smaller vertical and the smaller horizontal
+    one, 1 where both directions have no neighbour (the float32 operations of :func:`_mip_level`, no
+    fused multiply-adds).  The neighbours a row above and below are found by two cursors moving forward."""
     big = np.float32(1e6)
-    for i in range(flat.shape[0]):
+    n = flat.shape[0]
+    up = down = 0
+    for i in range(n):
         f = flat[i]
-        r = max(min(_texel_step(plane_u, plane_v, f, ww, big), _texel_step(plane_u, plane_v, f, -ww, big)),
-                min(_texel_step(plane_u, plane_v, f, 1, big), _texel_step(plane_u, plane_v, f, -1, big)))
+        while up < n and flat[up] < f - w:
+            up += 1
+        while down < n and flat[down] < f + w:
+            down += 1
+        d_up = _texel_step(tex, i, up, big) if up < n and flat[up] == f - w else big
+        d_down = _texel_step(tex, i, down, big) if down < n and flat[down] == f + w else big
+        d_left = _texel_step(tex, i, i - 1, big) if cols[i] > 0 and i > 0 and flat[i - 1] == f - 1 else big
+        d_right = (_texel_step(tex, i, i + 1, big) if cols[i] < w - 1 and i + 1 < n and flat[i + 1] == f + 1
+                   else big)
+        r = max(min(d_down, d_up), min(d_right, d_left))
         rho[i] = np.float32(1.0) if r >= big else r
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _texel_step(plane_u: np.ndarray, plane_v: np.ndarray, f: int, o: int,
-                big: np.float32) -> np.float32:  # pragma: no cover - compiled
-    du = plane_u[f + o] - plane_u[f]
-    dv = plane_v[f + o] - plane_v[f]
+def _texel_step(tex: np.ndarray, i: int, j: int, big: np.float32) -> np.float32:  # pragma: no cover - compiled
+    du = tex[j, 0] - tex[i, 0]
+    dv = tex[j, 1] - tex[i, 1]
     n = np.float32(np.sqrt(du * du + dv * dv))
     return n if np.isfinite(n) else big
 
 
-def _mip_level_at(tex_hit: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """:func:`_mip_level` at the hit pixels ``(rows, cols)`` only, from their texel coordinates ``tex_hit``
-    (``(N, 2)`` float32): the same float32 operations on the same neighbour differences, so the same values.
-
-    The neighbours are read from two planes over the hits' bounding box padded by one NaN pixel (a
-    neighbour off the target or off the ROI is NaN there, as in :func:`_mip_level`).
-    """
-    r0, c0 = int(rows.min()), int(cols.min())
-    hh, ww = int(rows.max()) - r0 + 3, int(cols.max()) - c0 + 3
-    flat = (rows - (r0 - 1)) * ww + (cols - (c0 - 1))
-    planes = []
-    for k in range(2):
-        plane = np.full(hh * ww, np.nan, dtype=np.float32)
-        plane[flat] = tex_hit[:, k]
-        planes.append(plane)
+def _mip_level_at(tex_hit: np.ndarray, flat: np.ndarray, cols: np.ndarray, w: int) -> np.ndarray:
+    """:func:`_mip_level` at the hit pixels only (``flat = row · w + col`` ascending, ``cols`` their columns
+    in an ROI ``w`` wide), from their texel coordinates ``tex_hit`` (``(N, 2)`` float32): the same float32
+    operations on the same neighbour differences, so the same values."""
     rho = np.empty(len(flat), dtype=np.float32)
-    _mip_rho(planes[0], planes[1], flat, ww, rho)
+    _mip_rho(np.ascontiguousarray(tex_hit, dtype=np.float32), flat, cols, int(w), rho)
     with np.errstate(divide="ignore"):
         return np.log2(np.maximum(rho, 1.0)).astype(np.float32)
 
@@ -385,6 +384,46 @@ def _roi_arrays(box: tuple[int, int, int, int], image_dtype: type) -> tuple[np.n
             np.full(shape, np.nan, dtype=np.float32), np.zeros(shape, dtype=bool),
             np.full(shape + (3,), np.nan, dtype=np.float32), np.full(shape, -1, dtype=np.int32),
             np.zeros(shape, dtype=bool))
+
+
+@numba.njit(cache=True, nogil=True)
+def _place_hits(flat: np.ndarray, L: np.ndarray, z: np.ndarray, X: np.ndarray, tid: np.ndarray, lit: np.ndarray,
+                radiance: np.ndarray, depth: np.ndarray, mask: np.ndarray, X_img: np.ndarray, tri_img: np.ndarray,
+                lit_img: np.ndarray) -> None:  # pragma: no cover - compiled
+    """A view's flattened ROI arrays (``X_img`` ``(h w, 3)``) written in one pass, each pixel once: the hit
+    values (float64 rounded to float32, as NumPy's assignment does) at the hit pixels ``flat`` (ascending),
+    and between them the off-target values of :func:`_roi_arrays`."""
+    start = 0
+    for i in range(flat.shape[0] + 1):
+        stop = flat[i] if i < flat.shape[0] else radiance.shape[0]
+        if stop > start:
+            radiance[start:stop] = 0.0
+            depth[start:stop] = np.nan
+            mask[start:stop] = False
+            X_img[start:stop] = np.nan
+            tri_img[start:stop] = -1
+            lit_img[start:stop] = False
+        if i < flat.shape[0]:
+            radiance[stop] = np.float32(L[i])
+            depth[stop] = np.float32(z[i])
+            mask[stop] = True
+            for k in range(3):
+                X_img[stop, k] = np.float32(X[i, k])
+            tri_img[stop] = tid[i]
+            lit_img[stop] = lit[i]
+        start = stop + 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _shadow_rays(X: np.ndarray, n: np.ndarray, idx: np.ndarray, eps: float, s_T: np.ndarray,
+                 rays: np.ndarray) -> None:  # pragma: no cover - compiled
+    """The float32 occlusion rays towards the Sun from the hits ``idx``: origin ``X + eps n`` (float64, no
+    fused multiply-add), direction ``s_T``."""
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        for k in range(3):
+            rays[j, k] = np.float32(X[i, k] + eps * n[i, k])
+            rays[j, 3 + k] = np.float32(s_T[k])
 
 
 #: rows per BLAS call in :func:`_matmul_rows` (a multiple of OpenBLAS's row blocking)
@@ -465,95 +504,90 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
             cover = coverage_mask(cam, target, c_T, R_TC, box)
             if cover is None:
                 cover = np.ones((y1 - y0, x1 - x0), dtype=bool)
-            rows, cols = np.divmod(np.flatnonzero(cover), cover.shape[1])  # row-major, as render's [hit]
-            d_C = np.empty((len(rows), 3))
-            d_C[:, 0] = (cols + x0 - cam.cx) / cam.fx
-            d_C[:, 1] = (rows + y0 - cam.cy) / cam.fy
-            d_C[:, 2] = 1.0
-            rays = np.empty((len(rows), 6), dtype=np.float32)
-            rays[:, :3] = c_T
-            rays[:, 3:] = _matmul_rows(d_C, R_TC.T)
-            v.update(c_T=c_T, R_TC=R_TC, cover=cover, rows=rows, cols=cols, rays=rays)
+            v.update(c_T=c_T, R_TC=R_TC, cover=cover, n_rays=np.count_nonzero(cover))
         views.append(v)
     s_T = R_HT.T @ s_H
     cast = [v for v in views if not v["reason"]]
     if cast:
-        hits = target.scene.cast_rays(o3d.core.Tensor(np.concatenate([v["rays"] for v in cast])))
+        rays = np.empty((sum(v["n_rays"] for v in cast), 6), dtype=np.float32)   # every view's, in one array
+        start = 0
+        for v in cast:
+            cam, n_rays = v["cam"], v["n_rays"]
+            v["rows"], v["cols"] = np.empty(n_rays, dtype=np.int64), np.empty(n_rays, dtype=np.int64)
+            d_C, rays_v = np.empty((n_rays, 3)), rays[start:start + n_rays]
+            covered_rays(v["cover"], v["box"][0], v["box"][1], (cam.cx, cam.cy, cam.fx, cam.fy), v["c_T"],
+                          v["rows"], v["cols"], d_C, rays_v)
+            rays_v[:, 3:] = _matmul_rows(d_C, v["R_TC"].T)
+            start += n_rays
+        hits = target.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
         t_all = hits["t_hit"].numpy()
         pid_all = hits["primitive_ids"].numpy()
         uv_all = hits["primitive_uvs"].numpy()
     start = 0
     occl = []
+    eps = max(1e-3, 1e-4 * target.radius_m)
     for v in cast:
-        x0, y0, x1, y1 = v["box"]
-        h, w = y1 - y0, x1 - x0
-        n_rays = len(v["rays"])
+        w = v["box"][2] - v["box"][0]
+        n_rays = v["n_rays"]
         sl = slice(start, start + n_rays)
         start += n_rays
         got = np.isfinite(t_all[sl])
-        rows, cols = v["rows"][got], v["cols"][got]
-        hit = np.zeros((h, w), dtype=bool)
+        rows, cols = np.compress(got, v["rows"]), np.compress(got, v["cols"])
         v["hit_flat"] = rows * w + cols
-        hit.reshape(-1)[v["hit_flat"]] = True
-        v["hit"] = hit
         if not got.any():
             v["reason"] = REASON_OUTSIDE_FOV
             continue
-        tid = pid_all[sl][got].astype(np.int64)
-        bary = uv_all[sl][got].astype(np.float64)
+        tid = np.compress(got, pid_all[sl]).astype(np.int64)
+        bary = np.compress(got, uv_all[sl], axis=0).astype(np.float64)   # (a boolean index costs 10x here)
         X = target.point_on_triangles(tid, bary)
         z = _matmul_rows(X - v["c_T"], v["R_TC"])[:, 2]
         n, n_dot_h = np.empty_like(X), np.empty(len(X))
         _facing_normals(X, v["c_T"], target.triangle_normals_T, tid, s_T, n, n_dot_h)
-        tex_hit = target.texture_coords(tid, bary).astype(np.float32)
-        level = _mip_level_at(tex_hit, rows, cols)
+        tex_hit = target.texture_coords(tid, bary)
+        level = _mip_level_at(tex_hit, v["hit_flat"], cols, w)
         albedo = target.sample_albedo(tex_hit, level, tid).astype(np.float64)
         cos_i = _matmul_rows(n, s_T)
         lit = cos_i > 0.0
         v.update(tid=tid, X_hit=X, z=z, n=n, n_dot_h=n_dot_h, albedo=albedo, cos_i=cos_i, lit_hit=lit)
         if shadows and lit.any():
-            eps = max(1e-3, 1e-4 * target.radius_m)
-            idx = np.nonzero(lit)[0]
+            idx = np.flatnonzero(lit)
             sray = np.empty((len(idx), 6), dtype=np.float32)
-            sray[:, :3] = X[idx] + eps * n[idx]
-            sray[:, 3:] = s_T
+            _shadow_rays(X, n, idx, eps, s_T, sray)
             occl.append((v, idx, sray))
     if occl:
-        occluded = target.scene.test_occlusions(o3d.core.Tensor(np.concatenate([o[2] for o in occl]))).numpy()
+        occluded = target.scene.test_occlusions(o3d.core.Tensor.from_numpy(np.concatenate([o[2] for o in occl]))).numpy()
         start = 0
         for v, idx, _ in occl:
             v["lit_hit"][idx[occluded[start:start + len(idx)].astype(bool)]] = False
             start += len(idx)
     out = []
+    ks_tri = np.array([m.specular for m in target.materials])[target.triangle_material]
+    ns_tri = np.array([m.shininess for m in target.materials])[target.triangle_material]
     for v in views:
-        a = _roi_arrays(v["box"], sensor.dtype)
         if v["reason"]:
-            out.append(RenderResult(*a, v["box"], v["reason"], v["cam"], v["T"], float("nan")))
+            out.append(RenderResult(*_roi_arrays(v["box"], sensor.dtype), v["box"], v["reason"], v["cam"], v["T"],
+                                    float("nan")))
             continue
         tid, lit, n, albedo = v["tid"], v["lit_hit"], v["n"], v["albedo"]
         L = albedo * np.maximum(v["cos_i"], 0.0) * lit
         if specular:
-            ks = np.array([m.specular for m in target.materials])[target.triangle_material[tid]]
-            ns = np.array([m.shininess for m in target.materials])[target.triangle_material[tid]]
-            L = L + ks * np.maximum(v["n_dot_h"], 0.0) ** ns * lit
+            L = L + ks_tri[tid] * np.maximum(v["n_dot_h"], 0.0) ** ns_tri[tid] * lit
         L = f_sun * L + ambient * albedo
         if earth is not None:
             L = L + albedo * earth.albedo_irradiance(_matmul_rows(n, R_HT.T), s_H)
-        x0, y0 = v["box"][:2]
-        hit = v["hit"]
-        image, rad_roi, depth, mask, X_img, tri_img, lit_img = a
+        x0, y0, x1, y1 = v["box"]
+        shape = (y1 - y0, x1 - x0)
+        rad_roi, depth = np.empty(shape, dtype=np.float32), np.empty(shape, dtype=np.float32)
+        mask, lit_img = np.empty(shape, dtype=bool), np.empty(shape, dtype=bool)
+        X_img, tri_img = np.empty(shape + (3,), dtype=np.float32), np.empty(shape, dtype=np.int32)
         flat = v["hit_flat"]                                     # row-major, the order of [hit]
-        rad_roi.reshape(-1)[flat] = L
+        _place_hits(flat, L, v["z"], v["X_hit"], tid, lit & (f_sun > 0), rad_roi.reshape(-1), depth.reshape(-1),
+                    mask.reshape(-1), X_img.reshape(-1, 3), tri_img.reshape(-1), lit_img.reshape(-1))
         if earth is not None:
-            rad_roi[~hit] = earth.background(v["cam"], v["T"], v["box"], s_H)[~hit]
-        depth.reshape(-1)[flat] = v["z"]
-        mask[...] = hit
-        X_img.reshape(-1, 3)[flat] = v["X_hit"]
-        tri_img.reshape(-1)[flat] = tid
-        lit_img.reshape(-1)[flat] = lit & (f_sun > 0)
+            rad_roi[~mask] = earth.background(v["cam"], v["T"], v["box"], s_H)[~mask]
         # the positive radiances in raster order: the hits' alone (no ROI-sized mask) without the Earth
         exposure = sensor.exposure_for(rad_roi if earth is not None else rad_roi.reshape(-1)[flat])
-        image[...] = sensor.apply(rad_roi, rng=v["rng"], exposure_s=exposure, origin_px=(x0, y0))
-        out.append(RenderResult(*a, v["box"], REASON_EARTH_SHADOW if f_sun == 0.0 else "", v["cam"], v["T"],
-                                exposure))
+        image = sensor.apply(rad_roi, rng=v["rng"], exposure_s=exposure, origin_px=(x0, y0))
+        out.append(RenderResult(image, rad_roi, depth, mask, X_img, tri_img, lit_img, v["box"],
+                                REASON_EARTH_SHADOW if f_sun == 0.0 else "", v["cam"], v["T"], exposure))
     return out

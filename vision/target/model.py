@@ -235,27 +235,78 @@ class Target:
     def sample_albedo(self, tex_xy: ArrayLike, level: ArrayLike, triangle_id: ArrayLike) -> np.ndarray:
         """Diffuse albedo at atlas coordinates ``tex_xy`` (``(N, 2)``) with mip ``level`` (``(N,)``).
 
-        Trilinear filtering: bilinear in the two pyramid levels around ``level``, blended linearly.
-        The result is the texture value times the triangle's material albedo.
+        Trilinear filtering: bilinear in the two pyramid levels around ``level``, blended linearly
+        (the float32 sum of the float64 weighted samples, lower level first).  Each pyramid level is
+        sampled in one OpenCV call, at every point that needs it.  The result is the texture value
+        times the triangle's material albedo.
         """
+        import cv2
 
-        xy = np.asarray(tex_xy, dtype=np.float32).reshape(-1, 2)
+        xy = np.ascontiguousarray(tex_xy, dtype=np.float32).reshape(-1, 2)
         lev = np.clip(np.asarray(level, dtype=np.float32).reshape(-1), 0.0, MIP_LEVELS - 1.0)
-        pyr = self.texture_pyramid
-        out = np.zeros(len(xy), dtype=np.float32)
+        if not np.isfinite(lev).all():
+            raise ValueError("level must be finite")
+        albedo = self._cached("triangle_albedo", lambda: np.array(
+            [m.albedo for m in self.materials], dtype=np.float32)[self.triangle_material])[
+            np.asarray(triangle_id, dtype=np.int64).reshape(-1)]
+        lev, albedo = (a if len(a) == len(xy) else np.broadcast_to(a, (len(xy),)).copy() for a in (lev, albedo))
         lo = np.floor(lev).astype(np.int64)
-        frac = lev - lo
-        for l in np.flatnonzero(np.bincount(lo)):                # the levels present (np.unique costs 8x)
-            sel = np.nonzero(lo == l)[0]
-            acc = np.zeros(len(sel), dtype=np.float32)
-            for ll, w in ((int(l), 1.0 - frac[sel]), (min(int(l) + 1, MIP_LEVELS - 1), frac[sel])):
-                scale = np.float32(0.5 ** ll)
-                mx = (xy[sel, 0] + np.float32(0.5)) * scale - np.float32(0.5)
-                my = (xy[sel, 1] + np.float32(0.5)) * scale - np.float32(0.5)
-                acc += w * _remap_points(pyr[ll], mx, my)
-            out[sel] = acc
-        albedo = np.array([m.albedo for m in self.materials], dtype=np.float32)
-        return out * albedo[self.triangle_material[np.asarray(triangle_id, dtype=np.int64).reshape(-1)]]
+        mx, my, start, slot = _level_maps(xy, lo, _REMAP_COLS)
+        sample = np.empty(start[-1], dtype=np.float32)
+        for ll in np.flatnonzero(np.diff(start)):
+            grid = slice(start[ll], start[ll + 1])
+            sample[grid] = cv2.remap(self.texture_pyramid[ll], mx[grid].reshape(-1, _REMAP_COLS),
+                                     my[grid].reshape(-1, _REMAP_COLS), interpolation=cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_REPLICATE).reshape(-1)
+        out = np.empty(len(xy), dtype=np.float32)
+        _blend_levels(lev, lo, sample, slot, albedo, out)
+        return out
+
+
+#: width of the grid :meth:`Target.sample_albedo` hands OpenCV its sample points on
+_REMAP_COLS = 1024
+
+
+@numba.njit(cache=True, nogil=True)
+def _level_maps(xy: np.ndarray, lo: np.ndarray, cols: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                     np.ndarray]:  # pragma: no cover - compiled
+    """Each point's coordinates in the pyramid levels ``lo`` and ``min(lo + 1, top)`` (float32
+    ``(x + 0.5) 2⁻ˡ - 0.5``), on one grid of ``cols`` columns per level, zero-padded: the maps ``mx`` and
+    ``my``, level ``l``'s grid at ``start[l]:start[l + 1]``, and each point's two slots in them (``slot``)."""
+    count = np.zeros(MIP_LEVELS, dtype=np.int64)
+    for i in range(lo.shape[0]):
+        count[lo[i]] += 1
+        count[min(lo[i] + 1, MIP_LEVELS - 1)] += 1
+    start = np.zeros(MIP_LEVELS + 1, dtype=np.int64)
+    for ll in range(MIP_LEVELS):
+        start[ll + 1] = start[ll] + -(-count[ll] // cols) * cols
+    mx, my = np.zeros(start[-1], dtype=np.float32), np.zeros(start[-1], dtype=np.float32)
+    slot = np.empty((lo.shape[0], 2), dtype=np.int64)
+    next_slot = start[:-1].copy()
+    half = np.float32(0.5)
+    scales = np.array([1.0 / (1 << ll) for ll in range(MIP_LEVELS)], dtype=np.float32)
+    for i in range(xy.shape[0]):
+        for j in range(2):
+            ll = min(lo[i] + j, MIP_LEVELS - 1)
+            k = next_slot[ll]
+            next_slot[ll] = k + 1
+            scale = scales[ll]
+            mx[k] = (xy[i, 0] + half) * scale - half
+            my[k] = (xy[i, 1] + half) * scale - half
+            slot[i, j] = k
+    return mx, my, start, slot
+
+
+@numba.njit(cache=True, nogil=True)
+def _blend_levels(lev: np.ndarray, lo: np.ndarray, sample: np.ndarray, slot: np.ndarray, albedo: np.ndarray,
+                  out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """``(1 - f) s_lo + f s_hi`` (``f = lev - lo`` in float64, each product added to a float32 sum starting
+    at 0, as NumPy's ``acc += w * s`` does), times the float32 material albedo."""
+    for i in range(lev.shape[0]):
+        f = lev[i] - np.float64(lo[i])
+        acc = np.float32(0.0 + (1.0 - f) * sample[slot[i, 0]])
+        acc = np.float32(acc + f * sample[slot[i, 1]])
+        out[i] = acc * albedo[i]
 
 
 def _barycentric(corners: np.ndarray, triangle_id: ArrayLike, bary_uv: ArrayLike, dtype: type) -> np.ndarray:
@@ -268,11 +319,12 @@ def _barycentric(corners: np.ndarray, triangle_id: ArrayLike, bary_uv: ArrayLike
     tid = np.broadcast_to(tid, shape).reshape(-1)
     b = np.ascontiguousarray(np.broadcast_to(b, shape + (2,)).reshape(-1, 2))
     F = len(corners)
-    if tid.size and (tid.max() >= F or tid.min() < -F):
-        raise IndexError(f"triangle ids must be in [-{F}, {F}), got {tid.min()} .. {tid.max()}")
+    lo, hi = (tid.min(), tid.max()) if tid.size else (0, 0)
+    if hi >= F or lo < -F:
+        raise IndexError(f"triangle ids must be in [-{F}, {F}), got {lo} .. {hi}")
     w0 = 1.0 - b[:, 0] - b[:, 1]
     out = np.empty((len(tid), corners.shape[1] // 3), dtype=dtype)
-    _blend_corners(corners, np.where(tid < 0, tid + F, tid), w0, b, out)
+    _blend_corners(corners, np.where(tid < 0, tid + F, tid) if lo < 0 else tid, w0, b, out)
     return out.reshape(shape + out.shape[1:])
 
 
@@ -284,20 +336,3 @@ def _blend_corners(corners: np.ndarray, tid: np.ndarray, w0: np.ndarray, b: np.n
         t = tid[i]
         for k in range(d):
             out[i, k] = w0[i] * corners[t, k] + b[i, 0] * corners[t, d + k] + b[i, 1] * corners[t, 2 * d + k]
-
-
-def _remap_points(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Bilinear samples of ``img`` at float32 points (OpenCV remap on a (rows, 1024) grid)."""
-    import cv2
-
-    n = len(x)
-    if n == 0:
-        return np.zeros(0, dtype=np.float32)
-    cols = 1024
-    rows = -(-n // cols)
-    mx = np.zeros(rows * cols, dtype=np.float32)
-    my = np.zeros(rows * cols, dtype=np.float32)
-    mx[:n], my[:n] = x, y
-    out = cv2.remap(img, mx.reshape(rows, cols), my.reshape(rows, cols),
-                    interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return out.reshape(-1)[:n]
