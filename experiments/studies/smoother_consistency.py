@@ -10,6 +10,7 @@ its solver), which is what this study isolates (docs/closed_loop.md, "Consistenc
     python -m experiments.studies.smoother_consistency --trials 10 --duration 90 --sigma-deg 0.05
     python -m experiments.studies.smoother_consistency --trials 10 --duration 90 --known-inertia
     python -m experiments.studies.smoother_consistency --trials 10 --closure-lag 4 --closure-every 2   # early closures
+    python -m experiments.studies.smoother_consistency --trials 20 --duration 60 --sigma-deg 0.03 --share-deg 0.04 --closure-lag 4 --closure-every 2
     python -m experiments.studies.smoother_consistency --drift --seed 1      # iSAM2's cost against the truth's
 
 prints the share of epochs whose ``trials``-run average NEES (attitude, 3 dof) is inside its 95 %
@@ -50,12 +51,16 @@ def truth(duration_s: float, dt_s: float = 0.5) -> tuple[np.ndarray, np.ndarray,
 
 
 def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, sigma_deg: float = 0.3,
-                  closure_lag_s: float = 40.0, closure_every: int = 4,
+                  closure_lag_s: float = 40.0, closure_every: int = 4, share_deg: float = 0.0,
                   wrong_at: int | None = None, settings: SmootherSettings | None = None,
                   after_update: Callable[[AttitudeSmoother, int], None] | None = None):
     """One smoother run on synthetic relative rotations (module docstring).
 
-    Every ``closure_every``-th epoch also gets a closure ``closure_lag_s`` back.  ``wrong_at``: at that epoch two wrong closures to epoch 0 (a 180° symmetric face and a 10°
+    Every ``closure_every``-th epoch also gets a closure ``closure_lag_s`` back.  ``share_deg > 0``
+    gives every epoch a frame error ``ε_k`` (isotropic, that σ per axis) common to all its links, as
+    a triangulated cloud's orientation error is: a link ``j → k`` is then
+    ``Exp(r) Exp(−ε_k) R_k R_jᵀ Exp(ε_j)`` with its own ``r`` of ``sigma_deg``, and the smoother gets
+    the frames' shares (:meth:`AttitudeSmoother.add_frame`) and ``r``'s covariance as the remainder.  ``wrong_at``: at that epoch two wrong closures to epoch 0 (a 180° symmetric face and a 10°
     corruption, each claiming ``sigma_deg``) are put to the gate, and whether each was refused is
     returned.  ``after_update(smoother, k)`` is called after each epoch's update.  Returns
     ``(smoother, (t, R_NT, ω), nees (T−1, 2): attitude and rate, refused)``.
@@ -68,14 +73,22 @@ def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, s
              np.eye(3) * np.deg2rad(0.1) ** 2)
     sigma = np.deg2rad(sigma_deg)
     C = np.eye(3) * sigma ** 2
+    S = np.eye(3) * np.deg2rad(share_deg) ** 2
+    eps = rng.normal(size=(len(t), 3)) * np.deg2rad(share_deg) if share_deg > 0 else np.zeros((len(t), 3))
     lag = int(round(closure_lag_s / (t[1] - t[0])))
     nees, refused = [], []
     for k in range(1, len(t)):
         sm.add_epoch(t[k])
+        if share_deg > 0:
+            sm.add_frame(k - 1, S)  # once per epoch (later calls are ignored)
+            sm.add_frame(k, S)
         for j in [k - 1] + ([k - lag] if k >= lag and k % closure_every == 0 else []):
-            meas = Rotation.from_rotvec(rng.normal(size=3) * sigma).as_matrix() @ R[k] @ R[j].T
-            if sm.gate(j, k, meas, C).accepted:
-                sm.add_relative(j, k, meas, C)
+            A = R[k] @ R[j].T
+            meas = Rotation.from_rotvec(rng.normal(size=3) * sigma).as_matrix() @ Rotation.from_rotvec(-eps[k]).as_matrix() \
+                @ A @ Rotation.from_rotvec(eps[j]).as_matrix()
+            cov = C + S + A @ S @ A.T
+            if sm.gate(j, k, meas, cov).accepted:
+                sm.add_relative(j, k, meas, cov, remainder_N=C if share_deg > 0 else None)
         if wrong_at is not None and k == wrong_at:
             for wrong in (Rotation.from_rotvec([0.0, 0.0, np.pi]).as_matrix(),   # a symmetric face
                           Rotation.from_rotvec(np.deg2rad([10.0, 0.0, 0.0])).as_matrix()):  # bad matches
@@ -91,17 +104,19 @@ def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, s
 
 
 def _nees_of_run(seed: int, *, duration_s: float, estimate_inertia: bool, sigma_deg: float,
-                 settings: SmootherSettings, closure_lag_s: float, closure_every: int) -> np.ndarray:
+                 settings: SmootherSettings, closure_lag_s: float, closure_every: int, share_deg: float) -> np.ndarray:
     return synthetic_run(duration_s, estimate_inertia=estimate_inertia, seed=seed, sigma_deg=sigma_deg,
-                         settings=settings, closure_lag_s=closure_lag_s, closure_every=closure_every)[2]
+                         settings=settings, closure_lag_s=closure_lag_s, closure_every=closure_every,
+                         share_deg=share_deg)[2]
 
 
 def monte_carlo(trials: int, duration_s: float, *, estimate_inertia: bool = True, sigma_deg: float = 0.3,
                 settings: SmootherSettings | None = None, workers: int = 2, closure_lag_s: float = 40.0,
-                closure_every: int = 4) -> np.ndarray:
+                closure_every: int = 4, share_deg: float = 0.0) -> np.ndarray:
     """NEES ``(trials, T−1, 2)`` of runs with seeds ``0 … trials−1``."""
     run = partial(_nees_of_run, duration_s=duration_s, estimate_inertia=estimate_inertia, sigma_deg=sigma_deg,
-                  settings=settings or SmootherSettings(), closure_lag_s=closure_lag_s, closure_every=closure_every)
+                  settings=settings or SmootherSettings(), closure_lag_s=closure_lag_s, closure_every=closure_every,
+                  share_deg=share_deg)
     if workers <= 1:
         return np.stack([run(s) for s in range(trials)])
     with ProcessPoolExecutor(workers) as pool:
@@ -134,6 +149,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument("--known-inertia", action="store_true")
     p.add_argument("--closure-lag", type=float, default=40.0, help="how far back the closures reach, s")
     p.add_argument("--closure-every", type=int, default=4, help="a closure every this many epochs")
+    p.add_argument("--share-deg", type=float, default=0.0,
+                   help="σ of each epoch's frame error common to its links (the smoother gets the frames' shares), deg")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--drift", action="store_true", help="one run: the graph's cost at iSAM2's estimate and at the truth")
     p.add_argument("--seed", type=int, default=1, help="the run of --drift")
@@ -144,6 +161,8 @@ def main(argv: Sequence[str] | None = None) -> None:
                             ("--closure-every", a.closure_every, a.closure_every >= 1), ("--workers", a.workers, a.workers >= 1)):
         if not ok:
             p.error(f"{name}: must be positive, got {value!r}")
+    if not a.share_deg >= 0:
+        p.error(f"--share-deg: must be zero or positive, got {a.share_deg!r}")
     known = {f.name: f.type for f in fields(SmootherSettings)}
     over = {}
     for item in a.set:
@@ -163,10 +182,11 @@ def main(argv: Sequence[str] | None = None) -> None:
         return
     nees = monte_carlo(a.trials, a.duration, estimate_inertia=not a.known_inertia, sigma_deg=a.sigma_deg,
                        settings=settings, workers=a.workers, closure_lag_s=a.closure_lag,
-                       closure_every=a.closure_every)
+                       closure_every=a.closure_every, share_deg=a.share_deg)
     lo, hi = chi2.ppf([0.025, 0.975], 3 * a.trials) / a.trials
     avg = nees[:, :, 0].mean(0)
-    print(f"{a.trials} runs of {a.duration:g} s, σ = {a.sigma_deg:g}°, inertia {'given' if a.known_inertia else 'estimated'}: "
+    share = f", frame shares {a.share_deg:g}°" if a.share_deg > 0 else ""
+    print(f"{a.trials} runs of {a.duration:g} s, σ = {a.sigma_deg:g}°{share}, inertia {'given' if a.known_inertia else 'estimated'}: "
           f"average NEES in its 95 % band [{lo:.2f}, {hi:.2f}] at {100 * np.mean((avg >= lo) & (avg <= hi)):.0f} % of epochs")
     print("from (s)  NEES attitude mean / median   rate mean")
     for i in range(0, nees.shape[1], 20):
