@@ -105,12 +105,23 @@ def test_bad_arguments_raise_value_error_naming_them(tmp_path):
 
 _KILLED_SCRIPT = textwrap.dedent(
     """
+    import dataclasses
     import sys
+    import time
     from experiments.studies.noise_calibration import ATTITUDE_NOISE_CELL
     from experiments.sweep import run_sweep
 
+
+    def slow(cell_input, seeds):
+        # the same numbers, 0.3 s later: on an idle machine the 12 cells can otherwise all finish
+        # between the test's last look at the store and the kill
+        time.sleep(0.3)
+        return ATTITUDE_NOISE_CELL.fn(cell_input, seeds)
+
+
     if __name__ == "__main__":
-        run_sweep(ATTITUDE_NOISE_CELL, {grid!r}, trials={trials}, out=sys.argv[1], seed={seed}, workers=1)
+        cell = dataclasses.replace(ATTITUDE_NOISE_CELL, fn=slow)  # same name: the same fingerprint
+        run_sweep(cell, {grid!r}, trials={trials}, out=sys.argv[1], seed={seed}, workers=1)
     """
 )
 
