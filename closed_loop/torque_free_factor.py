@@ -100,10 +100,13 @@ def tensor_from_entries(p: np.ndarray, floor: float = 0.05) -> np.ndarray:
     J[:, 0, 1] = J[:, 1, 0] = p[:, 2]
     J[:, 0, 2] = J[:, 2, 0] = p[:, 3]
     J[:, 1, 2] = J[:, 2, 1] = p[:, 4]
-    m, V = np.linalg.eigh(J)
-    bad = m[:, 0] < floor
-    if np.any(bad):
-        J[bad] = (V[bad] * np.maximum(m[bad], floor)[:, None, :]) @ np.swapaxes(V[bad], 1, 2)
+    # Sylvester's criterion on J − floor·I: every leading minor positive ⇔ every eigenvalue above the
+    # floor, so only the tensors that fail it need an eigendecomposition (a factor's usual case: none)
+    S = J - floor * np.eye(3)
+    ok = (S[:, 0, 0] > 0) & (S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] ** 2 > 0) & (np.linalg.det(S) > 0)
+    if not ok.all():
+        m, V = np.linalg.eigh(J[~ok])
+        J[~ok] = (V * np.maximum(m, floor)[:, None, :]) @ np.swapaxes(V, 1, 2)
     return J
 
 
