@@ -110,6 +110,12 @@ def test_texture_lookup_at_texel_centres_returns_texel_times_albedo(fy1):
     np.testing.assert_allclose(got, fy1.texture[xy[:, 1], xy[:, 0]] * albedo, atol=1e-6)
 
 
+def test_texture_lookup_refuses_a_non_finite_mip_level_by_name(fy1):
+    """A NaN level would index outside the pyramid's sample grid: refused, naming the parameter and value."""
+    with pytest.raises(ValueError, match=r"level: must be finite, got np.float32\(nan\)|level: must be finite, got nan"):
+        fy1.sample_albedo(np.array([[10.0, 10.0], [20.0, 20.0]]), np.array([0.0, np.nan]), np.array([0, 1]))
+
+
 def test_mip_levels_are_box_filtered_means_of_the_finer_level(fy1):
     p = fy1.texture_pyramid
     np.testing.assert_allclose(p[1][10, 20], p[0][20:22, 40:42].mean(), atol=1e-6)

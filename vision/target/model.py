@@ -245,7 +245,7 @@ class Target:
         xy = np.ascontiguousarray(tex_xy, dtype=np.float32).reshape(-1, 2)
         lev = np.clip(np.asarray(level, dtype=np.float32).reshape(-1), 0.0, MIP_LEVELS - 1.0)
         if not np.isfinite(lev).all():
-            raise ValueError("level must be finite")
+            raise ValueError(f"level: must be finite, got {lev[~np.isfinite(lev)][0]!r}")
         albedo = self._cached("triangle_albedo", lambda: np.array(
             [m.albedo for m in self.materials], dtype=np.float32)[self.triangle_material])[
             np.asarray(triangle_id, dtype=np.int64).reshape(-1)]
