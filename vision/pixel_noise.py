@@ -36,11 +36,16 @@ _MIX2 = np.uint64(0x94D049BB133111EB)
 _TWO_PI = 2.0 * np.pi
 
 
+def _key_word(key: int) -> np.uint64:
+    """A stream key as the uint64 word SplitMix64 adds (its low 64 bits)."""
+    return np.uint64(int(key) & 0xFFFF_FFFF_FFFF_FFFF)
+
+
 def _splitmix64(key: int, counter: np.ndarray) -> np.ndarray:
     """SplitMix64 output number ``counter + 1`` of the stream seeded with ``key`` (uint64, wrapping)."""
     c = np.ascontiguousarray(counter, dtype=np.uint64)
     z = np.empty_like(c)
-    _splitmix64_into(np.uint64(int(key) & 0xFFFF_FFFF_FFFF_FFFF), c.reshape(-1), z.reshape(-1))
+    _splitmix64_into(_key_word(key), c.reshape(-1), z.reshape(-1))
     return z
 
 
@@ -89,7 +94,7 @@ def pixel_normals(key: int, rows: ArrayLike, cols: ArrayLike) -> np.ndarray:
     if np.any(r < 0) or np.any(c < 0) or np.any(c >= 2 ** 32):
         raise ValueError("rows and cols must be non-negative pixel indices (cols < 2**32)")
     u1, u2 = np.empty(r.shape), np.empty(r.shape)
-    _box_muller_uniforms(np.uint64(int(key) & 0xFFFF_FFFF_FFFF_FFFF), r.reshape(-1), c.reshape(-1),
+    _box_muller_uniforms(_key_word(key), r.reshape(-1), c.reshape(-1),
                          u1.reshape(-1), u2.reshape(-1))
     # sqrt(-2 log u1) cos(2 pi u2), in place (the same operations without four temporaries)
     z = np.log(u1, out=u1)
