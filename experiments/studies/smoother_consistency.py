@@ -22,8 +22,10 @@ a :class:`closed_loop.smoother.SmootherSettings` field (e.g. ``--set warmup_batc
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import nullcontext
 from dataclasses import fields, replace
 from functools import partial
 
@@ -112,15 +114,19 @@ def _nees_of_run(seed: int, *, duration_s: float, estimate_inertia: bool, sigma_
 
 def monte_carlo(trials: int, duration_s: float, *, estimate_inertia: bool = True, sigma_deg: float = 0.3,
                 settings: SmootherSettings | None = None, workers: int = 2, closure_lag_s: float = 40.0,
-                closure_every: int = 4, share_deg: float = 0.0) -> np.ndarray:
-    """NEES ``(trials, T−1, 2)`` of runs with seeds ``0 … trials−1``."""
+                closure_every: int = 4, share_deg: float = 0.0,
+                progress: Callable[[int, int], None] | None = None) -> np.ndarray:
+    """NEES ``(trials, T−1, 2)`` of runs with seeds ``0 … trials−1``; ``progress(done, trials)`` after each run."""
     run = partial(_nees_of_run, duration_s=duration_s, estimate_inertia=estimate_inertia, sigma_deg=sigma_deg,
                   settings=settings or SmootherSettings(), closure_lag_s=closure_lag_s, closure_every=closure_every,
                   share_deg=share_deg)
-    if workers <= 1:
-        return np.stack([run(s) for s in range(trials)])
-    with ProcessPoolExecutor(workers) as pool:
-        return np.stack(list(pool.map(run, range(trials))))
+    out = []
+    with ProcessPoolExecutor(workers) if workers > 1 else nullcontext() as pool:
+        for nees in (pool.map(run, range(trials)) if pool is not None else map(run, range(trials))):
+            out.append(nees)
+            if progress is not None:
+                progress(len(out), trials)
+    return np.stack(out)
 
 
 def _drift(duration_s: float, seed: int, sigma_deg: float, settings: SmootherSettings, closure_lag_s: float,
@@ -182,7 +188,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         return
     nees = monte_carlo(a.trials, a.duration, estimate_inertia=not a.known_inertia, sigma_deg=a.sigma_deg,
                        settings=settings, workers=a.workers, closure_lag_s=a.closure_lag,
-                       closure_every=a.closure_every, share_deg=a.share_deg)
+                       closure_every=a.closure_every, share_deg=a.share_deg,
+                       progress=lambda done, total: print(f"run {done}/{total}", file=sys.stderr, flush=True))
     lo, hi = chi2.ppf([0.025, 0.975], 3 * a.trials) / a.trials
     avg = nees[:, :, 0].mean(0)
     share = f", frame shares {a.share_deg:g}°" if a.share_deg > 0 else ""
