@@ -33,9 +33,10 @@ from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import B, J, W, Y
+from gtsam.symbol_shorthand import B, H, J, W, Y
 from scipy.stats import chi2
 
+from closed_loop.link_factor import relative_rotation_factor
 from closed_loop.torque_free_factor import InertiaShape, propagate_batch, torque_free_factor
 
 __all__ = ["AttitudeSmoother", "SmootherSettings", "GateResult"]
@@ -138,6 +139,7 @@ class AttitudeSmoother:
         self._marginal_cache: dict[int, np.ndarray] = {}
         self._rate_cache: dict[int, np.ndarray] = {}
         self._frame_cov: dict[int, np.ndarray] = {}
+        self._symmetric: set[int] = set()
 
     def _params(self, *, dogleg: bool) -> gtsam.ISAM2Params:
         """iSAM2 settings: per-variable relinearisation thresholds, QR, and Gauss–Newton or Powell's dogleg.
@@ -151,7 +153,7 @@ class AttitudeSmoother:
         p = gtsam.ISAM2Params()
         thr = gtsam.ISAM2ThresholdMap()
         fine, coarse = self.settings.relinearize_threshold, self.settings.relinearize_threshold_inertia
-        for ch, dim, th in (("y", 3, fine), ("b", 3, fine), ("w", 3, fine), ("j", 5, coarse)):
+        for ch, dim, th in (("y", 3, fine), ("b", 3, fine), ("h", 3, fine), ("w", 3, fine), ("j", 5, coarse)):
             thr.insert((ch, np.full(dim, th)))
         p.setRelinearizeThreshold(thr)
         p.relinearizeSkip = int(self.settings.relinearize_skip)
@@ -286,7 +288,7 @@ class AttitudeSmoother:
         self._values.insert(B(k), _rot(R.T))
 
     def add_relative(self, j: int, k: int, dR_N: np.ndarray, cov_N: np.ndarray, *, remainder_N: np.ndarray | None = None,
-                     inflation: float = 1.0) -> None:
+                     symmetric_N: np.ndarray | None = None, inflation: float = 1.0) -> None:
         """A relative-rotation factor ``R_NT(k) R_NT(j)ᵀ = dR_N`` with left N-frame covariance ``cov_N`` (rad²).
 
         Where the frames were added (:meth:`add_frame`) the factor joins their cloud orientations
@@ -297,8 +299,13 @@ class AttitudeSmoother:
         exact maximum-likelihood fit its residual against the truth has NEES 2.5–3.4,
         docs/closed_loop.md), kept at least 1 % of ``cov_N`` in every direction.  ``inflation``
         multiplies the remainder (a closure shares its keyframe's points with the keyframe's other
-        closures, a correlation the graph does not hold).  Call :meth:`gate` first; this adds
-        unconditionally (Huber-robust).
+        closures, a correlation the graph does not hold).  ``symmetric_N``, given for a registration
+        to the previous epoch between two frames with shares, is the fit's part that enters this
+        increment and the next with the same sign (:mod:`closed_loop.link_factor`; the caller
+        leaves it out of ``remainder_N``): half of it is frame ``k``'s node ``h_k``, added here,
+        the other half is frame ``j``'s, held by ``h_j`` where the increment into ``j`` made one
+        and otherwise added to the remainder.  Call :meth:`gate` first; this adds unconditionally
+        (Huber-robust).
         """
         dR = np.asarray(dR_N, float)
         cov = 0.5 * (np.asarray(cov_N, float) + np.asarray(cov_N, float).T)
@@ -307,6 +314,22 @@ class AttitudeSmoother:
             remainder, floor = cov - self._frame_cov.get(k, zero) - dR @ self._frame_cov.get(j, zero) @ dR.T, 0.1
         else:
             remainder, floor = np.asarray(remainder_N, float), 0.01
+        hold_k = hold_j = False
+        if symmetric_N is not None and j in self._frame_cov and k in self._frame_cov:
+            hm, hU = np.linalg.eigh(0.25 * (np.asarray(symmetric_N, float) + np.asarray(symmetric_N, float).T))
+            half = (hU * np.maximum(hm, 1e-3 * max(hm.max(), 0.0))) @ hU.T
+            hold_j = j in self._symmetric
+            if not hold_j:
+                remainder = remainder + dR @ half @ dR.T
+            if k not in self._symmetric and hm.max() > 0:
+                self._graph.add(gtsam.PriorFactorVector(H(k), np.zeros(3), gtsam.noiseModel.Gaussian.Covariance(half)))
+                self._values.insert(H(k), np.zeros(3))
+                self._symmetric.add(k)
+                hold_k = True
+            else:
+                remainder = remainder + half
+        elif symmetric_N is not None:
+            remainder = remainder + np.asarray(symmetric_N, float)
         m, V = np.linalg.eigh(cov)
         iso = np.diag(1.0 / np.sqrt(m)) @ V.T  # whitening of cov
         rm, rV = np.linalg.eigh(iso @ (0.5 * (remainder + remainder.T)) @ iso.T)
@@ -316,7 +339,8 @@ class AttitudeSmoother:
         # B_jᵀ B_k = R_NT(j) R_NT(k)ᵀ = dR_Nᵀ; its right error is the (negated) left error of dR_N
         kj = B(j) if j in self._frame_cov else Y(j)
         kk = B(k) if k in self._frame_cov else Y(k)
-        self._graph.add(gtsam.BetweenFactorRot3(kj, kk, _rot(dR.T), noise))
+        self._graph.add(relative_rotation_factor(noise, kj, kk, dR, key_h_k=H(k) if hold_k else None,
+                                                 key_h_j=H(j) if hold_j else None))
 
     def update(self) -> None:
         """One iSAM2 step with the factors and variables added since the last."""
@@ -383,6 +407,8 @@ class AttitudeSmoother:
             v.insert(W(k), np.asarray(omega_T[k], float))
             if k in self._frame_cov:
                 v.insert(B(k), _rot(np.asarray(R_NT[k]).T))
+            if k in self._symmetric:
+                v.insert(H(k), np.zeros(3))
         if self.settings.estimate_inertia:
             if inertia is None:
                 raise ValueError("inertia: required when the inertia shape is estimated")

@@ -215,10 +215,12 @@ class SmoothingLoop:
         _add_share(sm, rec.share, k, frame, R_NH[k], [inc.inliers_curr for *_, inc, _ in accepted])
         for j, other, R_NH_j, dR_N, cov_N, inc, mode in accepted:
             _add_share(sm, rec.share, j, other, R_NH_j, [inc.inliers_prev])
-            rem = _remainder(cov_N, dR_N, (frame, R_NH[k], inc.inliers_curr, rec.share.get(k)),
-                             (other, R_NH_j, inc.inliers_prev, rec.share.get(j)))
-            sm.add_relative(j, k, dR_N, cov_N, remainder_N=rem,
-                            inflation=model.settings.closure_inflation if mode != "previous" else 1.0)
+            rem, fit = _remainder(cov_N, dR_N, (frame, R_NH[k], inc.inliers_curr, rec.share.get(k)),
+                                  (other, R_NH_j, inc.inliers_prev, rec.share.get(j)))
+            if mode == "previous":  # the fit's excess enters this increment and the next alike
+                sm.add_relative(j, k, dR_N, cov_N, remainder_N=rem, symmetric_N=fit)
+            else:
+                sm.add_relative(j, k, dR_N, cov_N, remainder_N=rem + fit, inflation=model.settings.closure_inflation)
             links.append((j, inc, mode))
             rec.n_links[k] += 1
             if mode != "previous":
@@ -245,13 +247,16 @@ def _add_share(sm: AttitudeSmoother, shares: dict, k: int, frame: Frame, R_NH_k:
         shares[k] = pts
 
 
-def _remainder(cov_N: np.ndarray, dR_N: np.ndarray, curr: tuple, prev: tuple) -> np.ndarray:
-    """The part of a registration's error that the frames' shares do not hold (N, rad²).
+def _remainder(cov_N: np.ndarray, dR_N: np.ndarray, curr: tuple, prev: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """The parts of a registration's error that the frames' shares do not hold (N, rad²): the subsets' and the fit's.
 
     The registration's error is the difference of the orientation errors of the point subsets it
     used, plus whatever the fit adds beyond them; the graph holds each frame's error over its share
     (:meth:`closed_loop.frames.Frame.subset_excess_covariance_H`).  Each side is
     ``(frame, R_NH, used tracks, share tracks or None)``; the earlier side is carried by ``dR_N``.
+    Returns the two subsets' excess over the shares and the fit's excess over the subsets'
+    own orientation errors (``cov_N`` less both, clipped at zero): the latter enters consecutive
+    increments with the same sign (:mod:`closed_loop.link_factor`).
     """
     parts = []
     for (frame, R_NH, used, share), carry in ((curr, np.eye(3)), (prev, dR_N)):
@@ -261,7 +266,7 @@ def _remainder(cov_N: np.ndarray, dR_N: np.ndarray, curr: tuple, prev: tuple) ->
         parts.append((A @ C_used @ A.T, A @ V @ A.T))
     fit_excess = cov_N - parts[0][0] - parts[1][0]
     m, U = np.linalg.eigh(0.5 * (fit_excess + fit_excess.T))
-    return (U * np.maximum(m, 0.0)) @ U.T + parts[0][1] + parts[1][1]
+    return parts[0][1] + parts[1][1], (U * np.maximum(m, 0.0)) @ U.T
 
 
 def _gaps(t_s: np.ndarray, n_links: np.ndarray, closure: np.ndarray, min_s: float) -> list[dict]:

@@ -54,7 +54,7 @@ def truth(duration_s: float, dt_s: float = 0.5) -> tuple[np.ndarray, np.ndarray,
 
 def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, sigma_deg: float = 0.3,
                   closure_lag_s: float = 40.0, closure_every: int = 4, share_deg: float = 0.0,
-                  wrong_at: int | None = None, settings: SmootherSettings | None = None,
+                  symmetric_deg: float = 0.0, hold_symmetric: bool = True, wrong_at: int | None = None, settings: SmootherSettings | None = None,
                   after_update: Callable[[AttitudeSmoother, int], None] | None = None):
     """One smoother run on synthetic relative rotations (module docstring).
 
@@ -62,7 +62,12 @@ def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, s
     gives every epoch a frame error ``ε_k`` (isotropic, that σ per axis) common to all its links, as
     a triangulated cloud's orientation error is: a link ``j → k`` is then
     ``Exp(r) Exp(−ε_k) R_k R_jᵀ Exp(ε_j)`` with its own ``r`` of ``sigma_deg``, and the smoother gets
-    the frames' shares (:meth:`AttitudeSmoother.add_frame`) and ``r``'s covariance as the remainder.  ``wrong_at``: at that epoch two wrong closures to epoch 0 (a 180° symmetric face and a 10°
+    the frames' shares (:meth:`AttitudeSmoother.add_frame`) and ``r``'s covariance as the remainder.
+    ``symmetric_deg > 0`` (with ``share_deg > 0``) also gives every frame an error ``h_k`` that enters
+    the increment ending at ``k`` and the next one with the same sign, as a fit's weighting puts a
+    frame's noise into its two increments (:mod:`closed_loop.link_factor`): the increment ``k − 1 → k``
+    is multiplied on the left by ``Exp(h_k + A h_{k−1})``; with ``hold_symmetric`` the smoother is
+    given it as ``symmetric_N``, else as part of the independent remainder.  ``wrong_at``: at that epoch two wrong closures to epoch 0 (a 180° symmetric face and a 10°
     corruption, each claiming ``sigma_deg``) are put to the gate, and whether each was refused is
     returned.  ``after_update(smoother, k)`` is called after each epoch's update.  Returns
     ``(smoother, (t, R_NT, ω), nees (T−1, 2): attitude and rate, refused)``.
@@ -77,6 +82,8 @@ def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, s
     C = np.eye(3) * sigma ** 2
     S = np.eye(3) * np.deg2rad(share_deg) ** 2
     eps = rng.normal(size=(len(t), 3)) * np.deg2rad(share_deg) if share_deg > 0 else np.zeros((len(t), 3))
+    Sh = np.eye(3) * np.deg2rad(symmetric_deg) ** 2
+    h = rng.normal(size=(len(t), 3)) * np.deg2rad(symmetric_deg) if symmetric_deg > 0 else np.zeros((len(t), 3))
     lag = int(round(closure_lag_s / (t[1] - t[0])))
     nees, refused = [], []
     for k in range(1, len(t)):
@@ -86,11 +93,16 @@ def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, s
             sm.add_frame(k, S)
         for j in [k - 1] + ([k - lag] if k >= lag and k % closure_every == 0 else []):
             A = R[k] @ R[j].T
-            meas = Rotation.from_rotvec(rng.normal(size=3) * sigma).as_matrix() @ Rotation.from_rotvec(-eps[k]).as_matrix() \
-                @ A @ Rotation.from_rotvec(eps[j]).as_matrix()
-            cov = C + S + A @ S @ A.T
+            sym = h[k] + A @ h[j] if j == k - 1 else np.zeros(3)
+            meas = Rotation.from_rotvec(rng.normal(size=3) * sigma + sym).as_matrix() \
+                @ Rotation.from_rotvec(-eps[k]).as_matrix() @ A @ Rotation.from_rotvec(eps[j]).as_matrix()
+            V = 2 * Sh if j == k - 1 else np.zeros((3, 3))
+            cov = C + V + S + A @ S @ A.T
             if sm.gate(j, k, meas, cov).accepted:
-                sm.add_relative(j, k, meas, cov, remainder_N=C if share_deg > 0 else None)
+                if share_deg > 0 and hold_symmetric and j == k - 1:
+                    sm.add_relative(j, k, meas, cov, remainder_N=C, symmetric_N=V)
+                else:
+                    sm.add_relative(j, k, meas, cov, remainder_N=C + V if share_deg > 0 else None)
         if wrong_at is not None and k == wrong_at:
             for wrong in (Rotation.from_rotvec([0.0, 0.0, np.pi]).as_matrix(),   # a symmetric face
                           Rotation.from_rotvec(np.deg2rad([10.0, 0.0, 0.0])).as_matrix()):  # bad matches
