@@ -23,6 +23,18 @@ frame and their errors cancel along a chain (lag-1 correlation −0.14), and a k
 enters every closure to it.  Treating the registrations as independent instead makes the chained
 estimate too pessimistic and the keyframe closures too confident.
 
+What a share does not hold is the maximum-likelihood fit's own weighting.  The fit of ``k`` to
+``k − 1`` weights each point by ``(C_k + C_{k−1})⁻¹`` and the fit of ``k + 1`` to ``k`` by
+``(C_{k+1} + C_k)⁻¹``, so frame ``k``'s noise enters the two increments with gains ``P_k + Δ``
+and ``P_k − Δ`` about its own least-squares gain ``P_k`` (the share's); with the older side's
+minus sign the ``Δ`` part enters both increments with the *same* sign, and adds up along a chain
+instead of cancelling.  Taken as independent per link (it is the fit's covariance beyond its two
+subsets', ``F``) it left a run of 40 increments too confident (NEES 4.5 against the truth).  Each
+frame that an increment reaches gets a second node ``U_k``, its *curr view*
+(:meth:`AttitudeSmoother._hold_symmetric`): the increment into ``k`` ends at ``U_k``, the next
+one starts at ``B_k``, and ``B_k → U_k`` carries ``4 H`` with ``H = F / 2`` taken from the share
+(``S_k − H``), which gives the links' joint second moments with plain between factors.
+
 :meth:`AttitudeSmoother.update` runs one iSAM2 step (online); :meth:`AttitudeSmoother.batch`
 re-solves the whole graph with Levenberg–Marquardt (analysis).  Covariances are iSAM2's marginals.
 """
@@ -33,10 +45,9 @@ from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import B, H, J, W, Y
+from gtsam.symbol_shorthand import B, J, U, W, Y
 from scipy.stats import chi2
 
-from closed_loop.link_factor import relative_rotation_factor
 from closed_loop.torque_free_factor import InertiaShape, propagate_batch, torque_free_factor
 
 __all__ = ["AttitudeSmoother", "SmootherSettings", "GateResult"]
@@ -139,7 +150,8 @@ class AttitudeSmoother:
         self._marginal_cache: dict[int, np.ndarray] = {}
         self._rate_cache: dict[int, np.ndarray] = {}
         self._frame_cov: dict[int, np.ndarray] = {}
-        self._symmetric: set[int] = set()
+        self._share_pending: dict[int, np.ndarray] = {}
+        self._curr_view: dict[int, np.ndarray] = {}
 
     def _params(self, *, dogleg: bool) -> gtsam.ISAM2Params:
         """iSAM2 settings: per-variable relinearisation thresholds, QR, and Gauss–Newton or Powell's dogleg.
@@ -153,7 +165,7 @@ class AttitudeSmoother:
         p = gtsam.ISAM2Params()
         thr = gtsam.ISAM2ThresholdMap()
         fine, coarse = self.settings.relinearize_threshold, self.settings.relinearize_threshold_inertia
-        for ch, dim, th in (("y", 3, fine), ("b", 3, fine), ("h", 3, fine), ("w", 3, fine), ("j", 5, coarse)):
+        for ch, dim, th in (("y", 3, fine), ("b", 3, fine), ("u", 3, fine), ("w", 3, fine), ("j", 5, coarse)):
             thr.insert((ch, np.full(dim, th)))
         p.setRelinearizeThreshold(thr)
         p.relinearizeSkip = int(self.settings.relinearize_skip)
@@ -282,9 +294,8 @@ class AttitudeSmoother:
             return
         cov = 0.5 * (np.asarray(cov_frame_N, float) + np.asarray(cov_frame_N, float).T)
         self._frame_cov[k] = cov
+        self._share_pending[k] = cov  # its factor joins at the update: the increment into k may lower it
         R, _ = self.estimate(k)
-        # B_k = Y_k Exp(ε): ε is minus the left N-frame error of the cloud's orientation
-        self._graph.add(gtsam.BetweenFactorRot3(Y(k), B(k), gtsam.Rot3(), gtsam.noiseModel.Gaussian.Covariance(cov)))
         self._values.insert(B(k), _rot(R.T))
 
     def add_relative(self, j: int, k: int, dR_N: np.ndarray, cov_N: np.ndarray, *, remainder_N: np.ndarray | None = None,
@@ -300,12 +311,11 @@ class AttitudeSmoother:
         docs/closed_loop.md), kept at least 1 % of ``cov_N`` in every direction.  ``inflation``
         multiplies the remainder (a closure shares its keyframe's points with the keyframe's other
         closures, a correlation the graph does not hold).  ``symmetric_N``, given for a registration
-        to the previous epoch between two frames with shares, is the fit's part that enters this
-        increment and the next with the same sign (:mod:`closed_loop.link_factor`; the caller
-        leaves it out of ``remainder_N``): half of it is frame ``k``'s node ``h_k``, added here,
-        the other half is frame ``j``'s, held by ``h_j`` where the increment into ``j`` made one
-        and otherwise added to the remainder.  Call :meth:`gate` first; this adds unconditionally
-        (Huber-robust).
+        to the previous epoch, is the fit's part that enters this increment and the next with the
+        same sign (module docstring; the caller leaves it out of ``remainder_N``): where both frames
+        have shares it goes to frame ``k``'s curr view (:meth:`_hold_symmetric`), else into the
+        remainder.  Other registrations get back the part of their frames' shares that a curr view
+        took.  Call :meth:`gate` first; this adds unconditionally (Huber-robust).
         """
         dR = np.asarray(dR_N, float)
         cov = 0.5 * (np.asarray(cov_N, float) + np.asarray(cov_N, float).T)
@@ -314,22 +324,16 @@ class AttitudeSmoother:
             remainder, floor = cov - self._frame_cov.get(k, zero) - dR @ self._frame_cov.get(j, zero) @ dR.T, 0.1
         else:
             remainder, floor = np.asarray(remainder_N, float), 0.01
-        hold_k = hold_j = False
-        if symmetric_N is not None and j in self._frame_cov and k in self._frame_cov:
-            hm, hU = np.linalg.eigh(0.25 * (np.asarray(symmetric_N, float) + np.asarray(symmetric_N, float).T))
-            half = (hU * np.maximum(hm, 1e-3 * max(hm.max(), 0.0))) @ hU.T
-            hold_j = j in self._symmetric
-            if not hold_j:
-                remainder = remainder + dR @ half @ dR.T
-            if k not in self._symmetric and hm.max() > 0:
-                self._graph.add(gtsam.PriorFactorVector(H(k), np.zeros(3), gtsam.noiseModel.Gaussian.Covariance(half)))
-                self._values.insert(H(k), np.zeros(3))
-                self._symmetric.add(k)
-                hold_k = True
-            else:
-                remainder = remainder + half
+        kj = B(j) if j in self._frame_cov else Y(j)
+        kk = B(k) if k in self._frame_cov else Y(k)
+        if (symmetric_N is not None and j in self._frame_cov and k in self._share_pending
+                and k not in self._curr_view):
+            kk, remainder = U(k), remainder + self._hold_symmetric(j, k, dR, np.asarray(symmetric_N, float))
         elif symmetric_N is not None:
             remainder = remainder + np.asarray(symmetric_N, float)
+        else:  # the nodes' shares were lowered by their curr-view parts: give them back to this link
+            zero = np.zeros((3, 3))
+            remainder = remainder + self._curr_view.get(k, zero) + dR @ self._curr_view.get(j, zero) @ dR.T
         m, V = np.linalg.eigh(cov)
         iso = np.diag(1.0 / np.sqrt(m)) @ V.T  # whitening of cov
         rm, rV = np.linalg.eigh(iso @ (0.5 * (remainder + remainder.T)) @ iso.T)
@@ -337,13 +341,46 @@ class AttitudeSmoother:
         base = gtsam.noiseModel.Gaussian.Covariance(0.5 * float(inflation) * (resid + resid.T))
         noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(self.settings.huber_k), base)
         # B_jᵀ B_k = R_NT(j) R_NT(k)ᵀ = dR_Nᵀ; its right error is the (negated) left error of dR_N
-        kj = B(j) if j in self._frame_cov else Y(j)
-        kk = B(k) if k in self._frame_cov else Y(k)
-        self._graph.add(relative_rotation_factor(noise, kj, kk, dR, key_h_k=H(k) if hold_k else None,
-                                                 key_h_j=H(j) if hold_j else None))
+        self._graph.add(gtsam.BetweenFactorRot3(kj, kk, _rot(dR.T), noise))
+
+    def _hold_symmetric(self, j: int, k: int, dR: np.ndarray, symmetric_N: np.ndarray) -> np.ndarray:
+        """Put the symmetric part of the increment ``j = k − 1 → k`` into frame ``k``'s nodes; the change to its remainder.
+
+        The fit's excess ``F`` over its two subsets enters this increment and the next with the same
+        sign (half from each frame, ``H = F / 2``; module docstring).  Frame ``k`` gets a second
+        node ``U_k`` (its *curr view*): ``Y_k → B_k`` with the share lowered to ``S_k − H`` and
+        ``B_k → U_k`` with ``4 H``; this increment joins ``B_j`` to ``U_k`` and the next joins
+        ``B_k`` to ``U_{k+1}``.  With ``H`` the same for neighbouring frames this gives each
+        increment its variance ``S_j + S_k + F``, two consecutive increments their covariance
+        ``−S_k + H`` and a run of increments ``4 H`` per inner frame: the joint second moments of
+        links whose frames' errors enter them with gains ``P ± Δ``.  ``H`` is capped at half the
+        share (whitened by it); the cut and, where frame ``j`` has no curr view, the ``H`` its
+        lowered share does not give are settled in the remainder.
+        """
+        m, V = np.linalg.eigh(0.25 * (symmetric_N + symmetric_N.T))
+        Hk = (V * np.maximum(m, 0.0)) @ V.T
+        S = self._share_pending[k]
+        sm, sV = np.linalg.eigh(S)
+        root = (sV * np.sqrt(np.maximum(sm, 1e-300))) @ sV.T
+        iroot = (sV / np.sqrt(np.maximum(sm, 1e-300))) @ sV.T
+        hm, hV = np.linalg.eigh(iroot @ Hk @ iroot)
+        held = root @ ((hV * np.clip(hm, 1e-6, 0.5)) @ hV.T) @ root
+        self._share_pending[k] = S - held
+        self._curr_view[k] = held
+        R, _ = self.estimate(k)
+        self._values.insert(U(k), _rot(R.T))
+        self._graph.add(gtsam.BetweenFactorRot3(B(k), U(k), gtsam.Rot3(), gtsam.noiseModel.Gaussian.Covariance(4 * held)))
+        change = 2 * (Hk - held)
+        if j not in self._curr_view:
+            change = change - dR @ held @ dR.T
+        return change
 
     def update(self) -> None:
         """One iSAM2 step with the factors and variables added since the last."""
+        for k, cov in self._share_pending.items():
+            # B_k = Y_k Exp(ε): ε is minus the left N-frame error of the cloud's orientation
+            self._graph.add(gtsam.BetweenFactorRot3(Y(k), B(k), gtsam.Rot3(), gtsam.noiseModel.Gaussian.Covariance(cov)))
+        self._share_pending = {}
         self._isam.update(self._graph, self._values)
         self._all.push_back(self._graph)
         self._graph = gtsam.NonlinearFactorGraph()
@@ -407,8 +444,8 @@ class AttitudeSmoother:
             v.insert(W(k), np.asarray(omega_T[k], float))
             if k in self._frame_cov:
                 v.insert(B(k), _rot(np.asarray(R_NT[k]).T))
-            if k in self._symmetric:
-                v.insert(H(k), np.zeros(3))
+            if k in self._curr_view:
+                v.insert(U(k), _rot(np.asarray(R_NT[k]).T))
         if self.settings.estimate_inertia:
             if inertia is None:
                 raise ValueError("inertia: required when the inertia shape is estimated")
