@@ -94,7 +94,7 @@ class SmootherSettings:
     estimate_inertia: bool = True
     inertia_prior_sigma_entries: float = 0.5
     process_sigma_attitude_rad: float = 1e-6
-    process_sigma_rate_rad_s: float = 1e-7
+    process_sigma_rate_rad_s: float = 1e-8
     gate_probability: float = 0.999
     huber_k: float = 3.0
     relinearize_threshold: float = 1e-5

@@ -311,6 +311,13 @@ class EstimatorConfig(ConfigTable):
                                    "ratios) from inertia_prior_kg_m2; else use the target's true tensor")
     inertia_prior_kg_m2: list[Inertia_kg_m2] = Field([1.0, 0.9, 0.8], description="smoother: prior mean of the "
                                                      "inertia shape (principal moments along the body axes)")
+    process_sigma_attitude_rad: FiniteFloat = Field(
+        1e-6, gt=0, le=1.0, description="smoother: per-second σ of the attitude process noise (un-modelled torque), "
+        "rad/√s")
+    process_sigma_rate_rad_s: FiniteFloat = Field(
+        1e-8, gt=0, le=1.0, description="smoother: per-second σ of the rate process noise, rad/s/√s (the simulated "
+        "target is torque-free; raise it for a real one: gravity-gradient torque on a 1000 kg m² body in low orbit "
+        "changes the rate by up to about 1e-6 rad/s²)")
     viewpoint_window_deg: Angle_deg = Field(30.0, gt=0, le=180.0, description="map: largest viewpoint change over "
                                             "which descriptors associate (beyond: registration by geometry)")
     min_inliers: Integer = Field(10, ge=3, le=10000, description="evidence: fewest inlier pairs a registration "

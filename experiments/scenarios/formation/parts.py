@@ -94,7 +94,10 @@ def make_loop(cfg: Config, camera: PinholeCamera | None = None,
         J = np.diag(e.inertia_prior_kg_m2) if e.estimate_inertia else cfg.inertia()
         model = ModelSettings(viewpoint_window_deg=e.viewpoint_window_deg) if e.registration == "map" else None
         return SmoothingLoop(observer=observer, registrar=registrar, J_prior_kg_m2=J,
-                             settings=SmootherSettings(estimate_inertia=e.estimate_inertia), model=model)
+                             settings=SmootherSettings(estimate_inertia=e.estimate_inertia,
+                                                       process_sigma_attitude_rad=e.process_sigma_attitude_rad,
+                                                       process_sigma_rate_rad_s=e.process_sigma_rate_rad_s),
+                             model=model)
     return ClosedLoop(observer=observer, registrar=registrar, estimator=make_estimator(cfg))
 
 

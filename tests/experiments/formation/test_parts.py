@@ -41,14 +41,16 @@ def test_formation_config_is_frozen():
 @pytest.mark.parametrize("estimate", [True, False])
 def test_smoother_config_builds_the_smoothing_loop(registration, model, estimate):
     """``filter = "smoother"`` gives the smoothing loop; ``map`` gives it a target model with the
-    configured window; the smoother starts from the prior shape or the true tensor."""
+    configured window; the smoother starts from the prior shape or the true tensor, with the configured
+    process noise."""
     import numpy as np
 
     from closed_loop.smoothing_loop import SmoothingLoop
 
     _, cfg = load_config(CONFIGS / "003_smoother_300s.toml", overrides={
         "estimator.registration": registration, "estimator.estimate_inertia": estimate,
-        "estimator.viewpoint_window_deg": 25.0, "estimator.min_inliers": 12})
+        "estimator.viewpoint_window_deg": 25.0, "estimator.min_inliers": 12,
+        "estimator.process_sigma_attitude_rad": 2e-6, "estimator.process_sigma_rate_rad_s": 3e-8})
     loop = make_loop(cfg)
     assert type(loop) is SmoothingLoop
     assert (loop.model is not None) == model
@@ -56,6 +58,7 @@ def test_smoother_config_builds_the_smoothing_loop(registration, model, estimate
         assert loop.model.viewpoint_window_deg == 25.0
     assert loop.registrar.evidence.min_inliers == 12
     assert loop.settings.estimate_inertia == estimate
+    assert (loop.settings.process_sigma_attitude_rad, loop.settings.process_sigma_rate_rad_s) == (2e-6, 3e-8)
     expected = np.diag([1.0, 0.9, 0.8]) if estimate else cfg.inertia()
     assert np.array_equal(loop.J_prior_kg_m2, expected)
     assert not np.allclose(cfg.inertia(), np.diag(np.diag(cfg.inertia())))  # the truth is not diagonal
