@@ -11,6 +11,7 @@ its solver), which is what this study isolates (docs/closed_loop.md, "Consistenc
     python -m experiments.studies.smoother_consistency --trials 10 --duration 90 --known-inertia
     python -m experiments.studies.smoother_consistency --trials 10 --closure-lag 4 --closure-every 2   # early closures
     python -m experiments.studies.smoother_consistency --trials 20 --duration 60 --sigma-deg 0.03 --share-deg 0.04 --closure-lag 4 --closure-every 2
+    python -m experiments.studies.smoother_consistency --trials 10 --duration 30 --sigma-deg 0.01 --share-deg 0.04 --symmetric-deg 0.03
     python -m experiments.studies.smoother_consistency --drift --seed 1      # iSAM2's cost against the truth's
 
 prints the share of epochs whose ``trials``-run average NEES (attitude, 3 dof) is inside its 95 %
@@ -117,21 +118,18 @@ def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, s
     return sm, (t, R, w), np.array(nees), refused
 
 
-def _nees_of_run(seed: int, *, duration_s: float, estimate_inertia: bool, sigma_deg: float,
-                 settings: SmootherSettings, closure_lag_s: float, closure_every: int, share_deg: float) -> np.ndarray:
-    return synthetic_run(duration_s, estimate_inertia=estimate_inertia, seed=seed, sigma_deg=sigma_deg,
-                         settings=settings, closure_lag_s=closure_lag_s, closure_every=closure_every,
-                         share_deg=share_deg)[2]
+def _nees_of_run(seed: int, *, duration_s: float, **run) -> np.ndarray:
+    return synthetic_run(duration_s, seed=seed, **run)[2]
 
 
 def monte_carlo(trials: int, duration_s: float, *, estimate_inertia: bool = True, sigma_deg: float = 0.3,
                 settings: SmootherSettings | None = None, workers: int = 2, closure_lag_s: float = 40.0,
-                closure_every: int = 4, share_deg: float = 0.0,
-                progress: Callable[[int, int], None] | None = None) -> np.ndarray:
-    """NEES ``(trials, T−1, 2)`` of runs with seeds ``0 … trials−1``; ``progress(done, trials)`` after each run."""
+                closure_every: int = 4, share_deg: float = 0.0, symmetric_deg: float = 0.0,
+                hold_symmetric: bool = True, progress: Callable[[int, int], None] | None = None) -> np.ndarray:
+    """NEES ``(trials, T−1, 2)`` of :func:`synthetic_run` with seeds ``0 … trials−1``; ``progress(done, trials)`` after each run."""
     run = partial(_nees_of_run, duration_s=duration_s, estimate_inertia=estimate_inertia, sigma_deg=sigma_deg,
                   settings=settings or SmootherSettings(), closure_lag_s=closure_lag_s, closure_every=closure_every,
-                  share_deg=share_deg)
+                  share_deg=share_deg, symmetric_deg=symmetric_deg, hold_symmetric=hold_symmetric)
     out = []
     with ProcessPoolExecutor(workers) if workers > 1 else nullcontext() as pool:
         for nees in (pool.map(run, range(trials)) if pool is not None else map(run, range(trials))):
@@ -169,6 +167,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument("--closure-every", type=int, default=4, help="a closure every this many epochs")
     p.add_argument("--share-deg", type=float, default=0.0,
                    help="σ of each epoch's frame error common to its links (the smoother gets the frames' shares), deg")
+    p.add_argument("--symmetric-deg", type=float, default=0.0,
+                   help="with --share-deg: σ of each frame's error entering its two increments alike (the fit's), deg")
+    p.add_argument("--symmetric-as-remainder", action="store_true",
+                   help="give the smoother that part as each link's own, not through the frames' curr views")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--drift", action="store_true", help="one run: the graph's cost at iSAM2's estimate and at the truth")
     p.add_argument("--seed", type=int, default=1, help="the run of --drift")
@@ -179,8 +181,11 @@ def main(argv: Sequence[str] | None = None) -> None:
                             ("--closure-every", a.closure_every, a.closure_every >= 1), ("--workers", a.workers, a.workers >= 1)):
         if not ok:
             p.error(f"{name}: must be positive, got {value!r}")
-    if not a.share_deg >= 0:
-        p.error(f"--share-deg: must be zero or positive, got {a.share_deg!r}")
+    for name, value in (("--share-deg", a.share_deg), ("--symmetric-deg", a.symmetric_deg)):
+        if not value >= 0:
+            p.error(f"{name}: must be zero or positive, got {value!r}")
+    if a.symmetric_deg > 0 and not a.share_deg > 0:
+        p.error(f"--symmetric-deg: needs --share-deg above zero (the frames' nodes), got --share-deg {a.share_deg!r}")
     known = {f.name: f.type for f in fields(SmootherSettings)}
     over = {}
     for item in a.set:
@@ -200,11 +205,14 @@ def main(argv: Sequence[str] | None = None) -> None:
         return
     nees = monte_carlo(a.trials, a.duration, estimate_inertia=not a.known_inertia, sigma_deg=a.sigma_deg,
                        settings=settings, workers=a.workers, closure_lag_s=a.closure_lag,
-                       closure_every=a.closure_every, share_deg=a.share_deg,
-                       progress=lambda done, total: print(f"run {done}/{total}", file=sys.stderr, flush=True))
+                       closure_every=a.closure_every, share_deg=a.share_deg, symmetric_deg=a.symmetric_deg,
+                       hold_symmetric=not a.symmetric_as_remainder, progress=lambda done, total: print(f"run {done}/{total}", file=sys.stderr, flush=True))
     lo, hi = chi2.ppf([0.025, 0.975], 3 * a.trials) / a.trials
     avg = nees[:, :, 0].mean(0)
     share = f", frame shares {a.share_deg:g}°" if a.share_deg > 0 else ""
+    if a.symmetric_deg > 0:
+        share += (f", symmetric parts {a.symmetric_deg:g}° "
+                  f"({'as remainders' if a.symmetric_as_remainder else 'in curr views'})")
     print(f"{a.trials} runs of {a.duration:g} s, σ = {a.sigma_deg:g}°{share}, inertia {'given' if a.known_inertia else 'estimated'}: "
           f"average NEES in its 95 % band [{lo:.2f}, {hi:.2f}] at {100 * np.mean((avg >= lo) & (avg <= hi)):.0f} % of epochs")
     print("from (s)  NEES attitude mean / median   rate mean")
