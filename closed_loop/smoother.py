@@ -70,6 +70,10 @@ class SmootherSettings:
         Per-second σ of the attitude process noise (un-modelled torque), rad/√s.
     process_sigma_rate_rad_s : float
         Per-second σ of the rate process noise, rad/s/√s.
+    warmup_process_sigma_rate_rad_s : float
+        While the inertia shape is learnt (the dogleg epochs below) the rate process noise is at
+        least this: one iSAM2 step per epoch lags the optimum of a young shape, and stiffer
+        dynamics factors make it lag further.
     gate_probability : float
         χ²₃ quantile of the innovation gate on every relative rotation.
     huber_k : float
@@ -95,6 +99,7 @@ class SmootherSettings:
     inertia_prior_sigma_entries: float = 0.5
     process_sigma_attitude_rad: float = 1e-6
     process_sigma_rate_rad_s: float = 1e-8
+    warmup_process_sigma_rate_rad_s: float = 1e-7
     gate_probability: float = 0.999
     huber_k: float = 3.0
     relinearize_threshold: float = 1e-5
@@ -232,7 +237,8 @@ class AttitudeSmoother:
         if not dt > 0:
             raise ValueError(f"t_s: epochs must increase, got {t_s} after {self._t[-1]}")
         s = self.settings
-        sig = np.concatenate([np.full(3, s.process_sigma_attitude_rad), np.full(3, s.process_sigma_rate_rad_s)])
+        rate = max(s.process_sigma_rate_rad_s, s.warmup_process_sigma_rate_rad_s) if self._dogleg else s.process_sigma_rate_rad_s
+        sig = np.concatenate([np.full(3, s.process_sigma_attitude_rad), np.full(3, rate)])
         noise = gtsam.noiseModel.Diagonal.Sigmas(sig * np.sqrt(dt))
         n_sub = max(1, int(np.ceil(dt / 0.5)))
         if s.estimate_inertia:
