@@ -335,11 +335,11 @@ class AttitudeSmoother:
         if (symmetric_N is not None and j in self._frame_cov and k in self._share_pending
                 and k not in self._curr_view):
             kk, remainder = U(k), remainder + self._hold_symmetric(j, k, dR, np.asarray(symmetric_N, float))
-        elif symmetric_N is not None:
-            remainder = remainder + np.asarray(symmetric_N, float)
         else:  # the nodes' shares were lowered by their curr-view parts: give them back to this link
             zero = np.zeros((3, 3))
             remainder = remainder + self._curr_view.get(k, zero) + dR @ self._curr_view.get(j, zero) @ dR.T
+            if symmetric_N is not None:
+                remainder = remainder + np.asarray(symmetric_N, float)
         m, V = np.linalg.eigh(cov)
         iso = np.diag(1.0 / np.sqrt(m)) @ V.T  # whitening of cov
         rm, rV = np.linalg.eigh(iso @ (0.5 * (remainder + remainder.T)) @ iso.T)

@@ -256,7 +256,7 @@ def _remainder(cov_N: np.ndarray, dR_N: np.ndarray, curr: tuple, prev: tuple) ->
     ``(frame, R_NH, used tracks, share tracks or None)``; the earlier side is carried by ``dR_N``.
     Returns the two subsets' excess over the shares and the fit's excess over the subsets'
     own orientation errors (``cov_N`` less both, clipped at zero): the latter enters consecutive
-    increments with the same sign (:mod:`closed_loop.link_factor`).
+    increments with the same sign (:mod:`closed_loop.smoother`, curr views).
     """
     parts = []
     for (frame, R_NH, used, share), carry in ((curr, np.eye(3)), (prev, dR_N)):

@@ -66,7 +66,7 @@ def synthetic_run(duration_s: float, *, estimate_inertia: bool, seed: int = 0, s
     the frames' shares (:meth:`AttitudeSmoother.add_frame`) and ``r``'s covariance as the remainder.
     ``symmetric_deg > 0`` (with ``share_deg > 0``) also gives every frame an error ``h_k`` that enters
     the increment ending at ``k`` and the next one with the same sign, as a fit's weighting puts a
-    frame's noise into its two increments (:mod:`closed_loop.link_factor`): the increment ``k − 1 → k``
+    frame's noise into its two increments (:mod:`closed_loop.smoother`): the increment ``k − 1 → k``
     is multiplied on the left by ``Exp(h_k + A h_{k−1})``; with ``hold_symmetric`` the smoother is
     given it as ``symmetric_N``, else as part of the independent remainder.  ``wrong_at``: at that epoch two wrong closures to epoch 0 (a 180° symmetric face and a 10°
     corruption, each claiming ``sigma_deg``) are put to the gate, and whether each was refused is
