@@ -33,7 +33,8 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from attitude.batch import matrices_from_rotvecs, rotvecs_from_matrices
+from attitude.batch import matrices_from_rotvecs
+from closed_loop._rk4_kernel import propagate_rk4, residuals
 
 __all__ = ["InertiaShape", "torque_free_factor", "propagate_batch", "rotation_error_T", "tensor_from_entries"]
 
@@ -110,21 +111,6 @@ def tensor_from_entries(p: np.ndarray, floor: float = 0.05) -> np.ndarray:
     return J
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross products of ``(M, 3)`` arrays (``np.cross`` without its axis handling)."""
-    out = np.empty_like(a)
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
-
-
-def _euler_rates(w: np.ndarray, J: np.ndarray, J_inv: np.ndarray) -> np.ndarray:
-    """``ω̇ = J⁻¹(−ω × Jω)`` for ``(M, 3)`` rates and ``(M, 3, 3)`` tensors (003 eq 27)."""
-    Jw = (J @ w[:, :, None])[:, :, 0]
-    return -(J_inv @ _cross(w, Jw)[:, :, None])[:, :, 0]
-
-
 def propagate_batch(R_NT: np.ndarray, omega_T: np.ndarray, J_T: np.ndarray, dt_s: float,
                     n_substeps: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """RK4 of 003 eq (25)–(27) for a batch of states, each with its own inertia tensor.
@@ -147,22 +133,12 @@ def propagate_batch(R_NT: np.ndarray, omega_T: np.ndarray, J_T: np.ndarray, dt_s
     -------
     R_NT, omega_T : ndarray (M, 3, 3), (M, 3)
     """
-    J_inv = np.linalg.inv(J_T)
-    h = dt_s / n_substeps
-    R, w = R_NT, omega_T
-    for _ in range(n_substeps):
-        k1 = _euler_rates(w, J_T, J_inv)
-        w2 = w + 0.5 * h * k1
-        k2 = _euler_rates(w2, J_T, J_inv)
-        w3 = w + 0.5 * h * k2
-        k3 = _euler_rates(w3, J_T, J_inv)
-        w4 = w + h * k3
-        k4 = _euler_rates(w4, J_T, J_inv)
-        # rotation vector over the step: Simpson's rule on the stage rates plus the coning term
-        theta = (h / 6.0) * (w + 2.0 * (w2 + w3) + w4) + (h * h / 12.0) * _cross(w, w4)
-        R = R @ matrices_from_rotvecs(theta)
-        w = w + (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
-    return R, w
+    R = np.ascontiguousarray(R_NT, dtype=float)
+    J = np.ascontiguousarray(np.broadcast_to(np.asarray(J_T, dtype=float), R.shape))
+    # compiled (closed_loop._rk4_kernel): a factor's batch is 7 or 12 states, where NumPy's
+    # per-call overhead outweighs the arithmetic
+    return propagate_rk4(R, np.ascontiguousarray(omega_T, dtype=float), J, np.linalg.inv(J),
+                         float(dt_s) / int(n_substeps), int(n_substeps))
 
 
 def rotation_error_T(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
@@ -173,6 +149,7 @@ def rotation_error_T(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
 
 
 _EXP_MINUS_H = matrices_from_rotvecs(-_H * np.eye(3))
+_EXP_PLUS_H = np.ascontiguousarray(np.swapaxes(_EXP_MINUS_H, 1, 2))
 
 
 def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, ...], dt_s: float, *,
@@ -227,12 +204,13 @@ def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, ...], dt_s
                 pb[7:12] += _H * np.eye(5)
             J = tensor_from_entries(pb)
         Rp, wp = propagate_batch(Rb, wb, J, dt_s, n_substeps)
-        r_att = rotvecs_from_matrices(np.swapaxes(Rp, -1, -2) @ R1)
-        r = np.concatenate([r_att, w1[None] - wp], -1)
+        r = residuals(Rp, wp, R1, w1)
+        r_att = r[:, :3]
         if want:
             D = (r[1:] - r[0]).T / _H  # (6, 11)
             # derivatives with respect to the later epoch: R₁ ← Exp(−ε) R₁, i.e. body perturbation −R₁ᵀ ε
-            r_eps = rotvecs_from_matrices(np.swapaxes(Rp[:1], -1, -2) @ _EXP_MINUS_H @ R1)
+            # (R̂ᵀ Exp(−ε) R₁ = (Exp(ε) R̂)ᵀ R₁)
+            r_eps = residuals(_EXP_PLUS_H @ Rp[0], wp[:3], R1, w1)[:, :3]
             H[0] = D[:, 0:3]
             H[1] = D[:, 3:6]
             H[2] = np.vstack([(r_eps - r_att[0]).T / _H, np.zeros((3, 3))])
