@@ -23,7 +23,7 @@ The factor compares epoch ``k+1`` with the RK4 propagation of epoch ``k`` (003 e
                          \\omega_{k+1} - \\hat\\omega_{k+1} \\end{bmatrix}
 
 with a small process noise.  Its Jacobians are finite differences of one batched RK4 call (the
-nominal state and its 11 perturbations propagated together).
+nominal state and its 11 perturbations propagated together, compiled: :mod:`closed_loop._rk4_kernel`).
 """
 
 from __future__ import annotations
