@@ -15,7 +15,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["propagate_rk4", "residuals"]
+__all__ = ["propagate_rk4", "residuals", "rotation_logs"]
 
 _JIT = dict(cache=True, nogil=True, error_model="numpy")
 
@@ -81,14 +81,14 @@ def propagate_rk4(R_NT: np.ndarray, omega_T: np.ndarray, J_T: np.ndarray, J_inv:
 
 
 @numba.njit(**_JIT)
-def residuals(R_pred: np.ndarray, omega_pred: np.ndarray, R_NT1: np.ndarray, omega_T1: np.ndarray) -> np.ndarray:
-    """``[Log(R̂ᵀR₁), ω₁ − ω̂]`` ``(M, 6)`` of ``M`` predictions against one state (the dynamics factor's residual).
+def rotation_logs(R_pred: np.ndarray, R_NT1: np.ndarray) -> np.ndarray:
+    """``Log(R̂ᵀR₁)`` ``(M, 3)`` of ``M`` predicted attitudes against one (rad).
 
-    ``Log`` from the skew part and the trace (:func:`attitude.batch.rotvecs_from_matrices`): the
-    residuals are small rotations.
+    From the skew part and the trace (:func:`attitude.batch.rotvecs_from_matrices`): the residuals
+    are small rotations.
     """
     M = R_pred.shape[0]
-    out = np.empty((M, 6))
+    out = np.empty((M, 3))
     for m in range(M):
         E = R_pred[m].T @ R_NT1
         w0 = 0.5 * (E[2, 1] - E[1, 2])
@@ -98,6 +98,16 @@ def residuals(R_pred: np.ndarray, omega_pred: np.ndarray, R_NT1: np.ndarray, ome
         c = 0.5 * (E[0, 0] + E[1, 1] + E[2, 2] - 1.0)
         f = 1.0 if s < 1e-12 else math.atan2(s, c) / s
         out[m, 0], out[m, 1], out[m, 2] = w0 * f, w1 * f, w2 * f
+    return out
+
+
+@numba.njit(**_JIT)
+def residuals(R_pred: np.ndarray, omega_pred: np.ndarray, R_NT1: np.ndarray, omega_T1: np.ndarray) -> np.ndarray:
+    """``[Log(R̂ᵀR₁), ω₁ − ω̂]`` ``(M, 6)`` of ``M`` predictions against one state (the dynamics factor's residual)."""
+    M = R_pred.shape[0]
+    out = np.empty((M, 6))
+    out[:, :3] = rotation_logs(R_pred, R_NT1)
+    for m in range(M):
         for i in range(3):
             out[m, 3 + i] = omega_T1[i] - omega_pred[m, i]
     return out

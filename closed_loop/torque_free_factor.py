@@ -34,7 +34,7 @@ import gtsam
 import numpy as np
 
 from attitude.batch import matrices_from_rotvecs
-from closed_loop._rk4_kernel import propagate_rk4, residuals
+from closed_loop._rk4_kernel import propagate_rk4, residuals, rotation_logs
 
 __all__ = ["InertiaShape", "torque_free_factor", "propagate_batch", "rotation_error_T", "tensor_from_entries"]
 
@@ -210,7 +210,7 @@ def torque_free_factor(noise: gtsam.noiseModel.Base, keys: tuple[int, ...], dt_s
             D = (r[1:] - r[0]).T / _H  # (6, 11)
             # derivatives with respect to the later epoch: R₁ ← Exp(−ε) R₁, i.e. body perturbation −R₁ᵀ ε
             # (R̂ᵀ Exp(−ε) R₁ = (Exp(ε) R̂)ᵀ R₁)
-            r_eps = residuals(_EXP_PLUS_H @ Rp[0], wp[:3], R1, w1)[:, :3]
+            r_eps = rotation_logs(_EXP_PLUS_H @ Rp[0], R1)
             H[0] = D[:, 0:3]
             H[1] = D[:, 3:6]
             H[2] = np.vstack([(r_eps - r_att[0]).T / _H, np.zeros((3, 3))])
