@@ -377,13 +377,24 @@ def _mip_level_at(tex_hit: np.ndarray, flat: np.ndarray, cols: np.ndarray, w: in
         return np.log2(np.maximum(rho, 1.0)).astype(np.float32)
 
 
-def _roi_arrays(box: tuple[int, int, int, int], image_dtype: type) -> tuple[np.ndarray, ...]:
-    """A view's output arrays over its ROI, as off the target: image, radiance, depth, mask, X_T, triangle, lit."""
+def _roi_arrays(box: tuple[int, int, int, int], flat: np.ndarray, L: np.ndarray, z: np.ndarray, X: np.ndarray,
+                tid: np.ndarray, lit: np.ndarray) -> tuple[np.ndarray, ...]:
+    """A view's output arrays over its ROI but the image (radiance, depth, mask, X_T, triangle, lit) with the
+    hits ``flat`` (raster order) placed by :func:`_place_hits` and the off-target values elsewhere."""
     shape = (box[3] - box[1], box[2] - box[0])
-    return (np.zeros(shape, dtype=image_dtype), np.zeros(shape, dtype=np.float32),
-            np.full(shape, np.nan, dtype=np.float32), np.zeros(shape, dtype=bool),
-            np.full(shape + (3,), np.nan, dtype=np.float32), np.full(shape, -1, dtype=np.int32),
-            np.zeros(shape, dtype=bool))
+    a = (np.empty(shape, dtype=np.float32), np.empty(shape, dtype=np.float32), np.empty(shape, dtype=bool),
+         np.empty(shape + (3,), dtype=np.float32), np.empty(shape, dtype=np.int32), np.empty(shape, dtype=bool))
+    rad, depth, mask, X_img, tri, lit_img = a
+    _place_hits(flat, L, z, X, tid, lit, rad.reshape(-1), depth.reshape(-1), mask.reshape(-1), X_img.reshape(-1, 3),
+                tri.reshape(-1), lit_img.reshape(-1))
+    return a
+
+
+def _off_target(box: tuple[int, int, int, int], image_dtype: type) -> tuple[np.ndarray, ...]:
+    """A view's output arrays over its ROI, as off the target: image, radiance, depth, mask, X_T, triangle, lit."""
+    none = np.empty(0, dtype=np.int64)
+    return (np.zeros((box[3] - box[1], box[2] - box[0]), dtype=image_dtype),
+            *_roi_arrays(box, none, np.empty(0), np.empty(0), np.empty((0, 3)), none, np.empty(0, dtype=bool)))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -392,7 +403,7 @@ def _place_hits(flat: np.ndarray, L: np.ndarray, z: np.ndarray, X: np.ndarray, t
                 lit_img: np.ndarray) -> None:  # pragma: no cover - compiled
     """A view's flattened ROI arrays (``X_img`` ``(h w, 3)``) written in one pass, each pixel once: the hit
     values (float64 rounded to float32, as NumPy's assignment does) at the hit pixels ``flat`` (ascending),
-    and between them the off-target values of :func:`_roi_arrays`."""
+    and between them the off-target values: 0, NaN, False, NaN, −1, False."""
     start = 0
     for i in range(flat.shape[0] + 1):
         stop = flat[i] if i < flat.shape[0] else radiance.shape[0]
@@ -565,7 +576,7 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
     ns_tri = np.array([m.shininess for m in target.materials])[target.triangle_material]
     for v in views:
         if v["reason"]:
-            out.append(RenderResult(*_roi_arrays(v["box"], sensor.dtype), v["box"], v["reason"], v["cam"], v["T"],
+            out.append(RenderResult(*_off_target(v["box"], sensor.dtype), v["box"], v["reason"], v["cam"], v["T"],
                                     float("nan")))
             continue
         tid, lit, n, albedo = v["tid"], v["lit_hit"], v["n"], v["albedo"]
@@ -575,14 +586,10 @@ def render_batch(cameras: list[PinholeCamera], T_CW: ArrayLike, target: Target, 
         L = f_sun * L + ambient * albedo
         if earth is not None:
             L = L + albedo * earth.albedo_irradiance(_matmul_rows(n, R_HT.T), s_H)
-        x0, y0, x1, y1 = v["box"]
-        shape = (y1 - y0, x1 - x0)
-        rad_roi, depth = np.empty(shape, dtype=np.float32), np.empty(shape, dtype=np.float32)
-        mask, lit_img = np.empty(shape, dtype=bool), np.empty(shape, dtype=bool)
-        X_img, tri_img = np.empty(shape + (3,), dtype=np.float32), np.empty(shape, dtype=np.int32)
+        x0, y0 = v["box"][:2]
         flat = v["hit_flat"]                                     # row-major, the order of [hit]
-        _place_hits(flat, L, v["z"], v["X_hit"], tid, lit & (f_sun > 0), rad_roi.reshape(-1), depth.reshape(-1),
-                    mask.reshape(-1), X_img.reshape(-1, 3), tri_img.reshape(-1), lit_img.reshape(-1))
+        rad_roi, depth, mask, X_img, tri_img, lit_img = _roi_arrays(v["box"], flat, L, v["z"], v["X_hit"], tid,
+                                                                    lit & (f_sun > 0))
         if earth is not None:
             rad_roi[~mask] = earth.background(v["cam"], v["T"], v["box"], s_H)[~mask]
         # the positive radiances in raster order: the hits' alone (no ROI-sized mask) without the Earth
