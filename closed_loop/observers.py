@@ -91,6 +91,13 @@ class RenderedObserver(Observer):
     orbit_radius_m: float = 6_378_137.0 + 870e3
     earth_seed: int = 0
 
+    def __post_init__(self):
+        # every camera-frame allocates and frees image-sized buffers: keep them in the process
+        # (vision.allocator; how memory is reused, not what is computed)
+        from vision.allocator import retain_freed_memory
+
+        retain_freed_memory()
+
     def observe(self, T_CW: np.ndarray, q_HT: np.ndarray, sun_H: np.ndarray, *, rng: np.random.Generator,
                 sun_visible_fraction: float = 1.0) -> Observation:
         """Render every camera's image and match the features across the views (see :meth:`Observer.observe`)."""

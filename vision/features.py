@@ -239,25 +239,45 @@ def epipolar_distance_px(F: ArrayLike, uv_A: ArrayLike, uv_B: ArrayLike) -> np.n
 # ----------------------------------------------------------------------------------------------
 
 
-def _flann_index(desc_b: np.ndarray, *, flann_trees: int, flann_checks: int):
-    """A FLANN matcher trained on the descriptors ``desc_b`` (non-empty): kd-trees, or LSH for binary ones."""
+def _flann_index(desc_b: np.ndarray, *, flann_trees: int, flann_checks: int) -> _FlannIndex:
+    """A FLANN index of the descriptors ``desc_b`` (non-empty): kd-trees, or LSH for binary ones."""
     import cv2
 
     if desc_b.dtype == np.uint8:
-        index = {"algorithm": 6, "table_number": 6, "key_size": 12, "multi_probe_level": 1}  # LSH
+        params = {"algorithm": 6, "table_number": 6, "key_size": 12, "multi_probe_level": 1}  # LSH
     else:
-        index = {"algorithm": 1, "trees": int(flann_trees)}                                # kd-tree
+        params = {"algorithm": 1, "trees": int(flann_trees)}                                # kd-tree
     # FLANN's randomised kd-trees draw from OpenCV's (thread-local) RNG when they are built: seed it
-    # so that matching is reproducible (searching draws nothing, so a trained index can be reused).
+    # so that matching is reproducible (searching draws nothing, so a built index can be reused).
     cv2.setRNGSeed(0)
-    matcher = cv2.FlannBasedMatcher(index, {"checks": int(flann_checks)})
-    matcher.add([desc_b])
-    matcher.train()
-    return matcher
+    return _FlannIndex(cv2.flann_Index(np.ascontiguousarray(desc_b), params), len(desc_b),
+                       int(flann_checks), desc_b.dtype == np.uint8)
+
+
+class _FlannIndex:
+    """``cv2.flann_Index`` of one view's descriptors and its search checks.
+
+    The same index and search as ``cv2.FlannBasedMatcher`` (which wraps a ``flann::Index`` built with
+    these parameters) with the neighbours returned as arrays: the matcher's ``DMatch`` lists cost about
+    as much again as the search.  Distances are L2 (FLANN's squared L2, rooted in float32 as the
+    matcher does) or Hamming for binary descriptors.
+    """
+
+    def __init__(self, index, n: int, checks: int, binary: bool):
+        self.index, self.n, self.checks, self.binary = index, n, checks, binary
+
+    def search(self, desc_a: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(idx (N, k), dist (N, k))``, neighbours sorted by distance, -1 / inf where none was found."""
+        idx, d = self.index.knnSearch(np.ascontiguousarray(desc_a), k, params={"checks": self.checks})
+        idx = idx.astype(np.int64)
+        dist = d.astype(np.float64) if self.binary else np.sqrt(d.astype(np.float32)).astype(np.float64)
+        dist[idx < 0] = np.inf
+        idx[idx < 0] = -1
+        return idx, dist
 
 
 def _knn(desc_a: np.ndarray, desc_b: np.ndarray, k: int, *, flann_trees: int, flann_checks: int,
-         index=None):
+         index: _FlannIndex | None = None):
     """k approximate nearest neighbours (FLANN) in B of every descriptor of A.
 
     ``index``: :func:`_flann_index` of ``desc_b`` if already built.
@@ -270,12 +290,8 @@ def _knn(desc_a: np.ndarray, desc_b: np.ndarray, k: int, *, flann_trees: int, fl
         return idx, dist
     if index is None:
         index = _flann_index(desc_b, flann_trees=flann_trees, flann_checks=flann_checks)
-    found = [(i, j, m.trainIdx, m.distance) for i, ms in enumerate(index.knnMatch(desc_a, k=min(k, len(desc_b))))
-             for j, m in enumerate(ms[:k])]
-    if found:
-        i, j, t, d = zip(*found, strict=True)
-        idx[i, j] = t
-        dist[i, j] = d
+    kk = min(k, len(desc_b))
+    idx[:, :kk], dist[:, :kk] = index.search(desc_a, kk)
     return idx, dist
 
 
@@ -311,7 +327,7 @@ def match_pair(kp_A: Keypoints, kp_B: Keypoints, *, ratio: float = 0.6, F_AB: Ar
     flann_trees, flann_checks : int
         FLANN kd-tree parameters (4 trees, 32 checks by default: our choice, 003 gives none).
     flann_index : optional
-        A FLANN matcher already trained on ``kp_B``'s descriptors with these parameters
+        A FLANN index of ``kp_B``'s descriptors built with these parameters
         (:func:`match_views` reuses one per view); built here if None.
 
     Returns

@@ -100,6 +100,9 @@ def calibrate(
     except ValueError as exc:
         raise fail(f"--ranges-m/--targets: {exc}") from None
     path = Path(out) if out is not None else calibration_path()
+    from vision.allocator import retain_freed_memory
+
+    retain_freed_memory()                 # rendered frames: keep their freed buffers (vision.allocator)
     if nees_only:
         _nees_only(path, base, attitudes, out)
         return

@@ -10,32 +10,40 @@ Paths
 -----
 - today's (the baseline, before issue 16 item 7): ``render_views(batched=False)`` (one
   ``vision.render.render`` per view: rays over the whole ROI, full-size arrays) with the sensor's
-  ``noise_stream="tiles"`` (one NumPy generator per 32 × 32 tile, a normal for every ROI pixel);
-- new: ``render_views`` (all views in one ``vision.render.render_batch``: one Open3D cast, rays
-  only where a projected triangle can cover the pixel, mip levels at the hit pixels, ROI-sized
-  arrays) with the default ``noise_stream="pixel"`` (counter-based normals on the pixels with
-  signal, the rare dark-pixel exceedances drawn directly: the same noise law, other draws).
+  ``noise_stream="tiles"`` (one NumPy generator per 32 × 32 tile, a normal for every ROI pixel), in a
+  process with glibc's default ``malloc`` settings;
+- new, default allocator: ``render_views`` (all views in one ``vision.render.render_batch``: one
+  Open3D cast, rays only where a projected triangle can cover the pixel, mip levels at the hit
+  pixels, ROI-sized arrays) with the default ``noise_stream="pixel"`` (counter-based normals on the
+  pixels with signal, the rare dark-pixel exceedances drawn directly: the same noise law, other
+  draws), FLANN neighbours as arrays (``vision.features._FlannIndex``), in a process with glibc's
+  defaults: the code's share of the gain;
+- new (the rendered mode as the product runs it): the same in a process where
+  ``vision.allocator.retain_freed_memory`` has been called, as ``RenderedObserver`` does.
 
-Both detect with ``detect_views`` (SIFT over each view's ROI, the foreground mask over the ROI) on
-one thread with OpenCV on one thread: like for like, the work per camera-frame, which is what a sweep
-worker gains when every core already runs a worker.  They are timed alternately in the same run
-(best of ``repeat``), in process CPU time (all threads; little disturbed by other jobs on the
-machine) and in wall time.
+Each path runs in its own fresh (spawned) process, so that the allocator settings of one do not
+reach another; the three processes take the epochs in turn, one epoch each, so that all see the same
+state of a shared machine (its speed drifts by tens of per cent over seconds).  All detect with
+``detect_views`` (SIFT over each view's ROI, the foreground mask over the ROI) with OpenCV on one
+thread: like for like, the work per camera-frame, which is what a sweep worker gains when every core
+already runs a worker.  Timed in process CPU time (all threads, user and system; little disturbed by
+other jobs on the machine) and in wall time, best of ``repeat`` passes over the epochs.
 
 Same matches: the noise draws differ, so the check is (1) with a noise-free sensor (no shot or read
-noise) both paths give identical tracks (pixel positions and truth labels) on every epoch, and
-(2) the noise law is the same (``tests/vision/test_pixel_noise.py``: mean, variance and the dark-pixel
-exceedance rate against their analytic values); with noise, the rows give both paths' median tracks
-per epoch.
+noise) today's and the new path give identical tracks (pixel positions and truth labels) on every
+epoch, and (2) the noise law is the same (``tests/vision/test_pixel_noise.py``: mean, variance and
+the dark-pixel exceedance rate against their analytic values); with noise, the rows give the paths'
+median tracks per epoch.
 """
 
 from __future__ import annotations
 
+import contextlib
 import time
 
 import numpy as np
 
-from experiments.bench import BenchRow, throughput_row
+from experiments.bench import BenchRow, duration_row, throughput_row
 
 DISTANCES_M = (40.0, 80.0)
 
@@ -52,36 +60,44 @@ def _scene(distance_m: float, epochs: int):
     return obs.camera, obs.target, symmetric_T_CW(cfg), qs, sun / np.linalg.norm(sun)
 
 
-def _observe(scene, *, batched: bool, sensor, stages: dict | None = None):
-    """The observations of every epoch of ``scene`` by one path (CPU seconds per stage added to ``stages``)."""
-    import cv2
-
+def _observe_epoch(scene, k: int, *, batched: bool, sensor, stages: dict | None = None):
+    """The observation of epoch ``k`` of ``scene`` by one path (CPU seconds per stage added to ``stages``)."""
     from vision.features import match_views
     from vision.rendered import detect_views, label_tracks, render_views
 
     cam, target, T, qs, sun = scene
+    t0 = time.process_time()
+    renders = render_views(cam, T, target, qs[k], sun, rng=k, batched=batched, sensor=sensor)
+    t1 = time.process_time()
+    kps = detect_views(renders)
+    t2 = time.process_time()
+    obs = match_views(kps, cam, T)
+    t3 = time.process_time()
+    if obs.ok:
+        obs = label_tracks(obs, renders, target, qs[k])
+    t4 = time.process_time()
+    if stages is not None:
+        for name, dt in (("render", t1 - t0), ("SIFT", t2 - t1), ("match", t3 - t2), ("label", t4 - t3)):
+            stages[name] = stages.get(name, 0.0) + dt
+    return obs
+
+
+def _observe(scene, *, batched: bool, sensor):
+    """The observations of every epoch of ``scene`` by one path."""
+    return [_observe_epoch(scene, k, batched=batched, sensor=sensor) for k in range(len(scene[3]))]
+
+
+@contextlib.contextmanager
+def _one_thread():
+    """OpenCV (SIFT, FLANN) on one thread inside the block, as in a sweep worker beside other workers."""
+    import cv2
+
     before = cv2.getNumThreads()
     cv2.setNumThreads(1)
-    out = []
     try:
-        for k, q in enumerate(qs):
-            t0 = time.process_time()
-            renders = render_views(cam, T, target, q, sun, rng=k, batched=batched, sensor=sensor)
-            t1 = time.process_time()
-            kps = detect_views(renders)
-            t2 = time.process_time()
-            obs = match_views(kps, cam, T)
-            t3 = time.process_time()
-            if obs.ok:
-                obs = label_tracks(obs, renders, target, q)
-            t4 = time.process_time()
-            out.append(obs)
-            if stages is not None:
-                for name, dt in (("render", t1 - t0), ("SIFT", t2 - t1), ("match", t3 - t2), ("label", t4 - t3)):
-                    stages[name] = stages.get(name, 0.0) + dt
+        yield
     finally:
         cv2.setNumThreads(before)
-    return out
 
 
 def _same_tracks(a, b) -> bool:
@@ -89,44 +105,145 @@ def _same_tracks(a, b) -> bool:
                for x, y in zip(a, b, strict=True))
 
 
-def run(*, quick: bool = False) -> list[BenchRow]:
+_PATHS = {  # name: (batched render, sensor noise stream, retain freed memory)
+    "today": (False, "tiles", False),
+    "new, default allocator": (True, "pixel", False),
+    "new": (True, "pixel", True),
+}
+
+
+def _path_process(conn, name: str) -> None:
+    """One path in its own process: ``("scene", distance_m, epochs)`` builds and warms a scene,
+    ``("epoch", k)`` answers ``(cpu_s, wall_s, stages, n_tracks)``, ``None`` ends."""
+    from vision.allocator import retain_freed_memory
     from vision.sensor import SensorModel
 
+    batched, stream, retain = _PATHS[name]
+    if retain:
+        retain_freed_memory()
+    sensor = SensorModel(noise_stream=stream)
+    scene = None
+    with _one_thread():
+        while (msg := conn.recv()) is not None:
+            if msg[0] == "scene":
+                scene = _scene(msg[1], msg[2])
+                _observe(scene, batched=batched, sensor=sensor)   # warm-up: BVH, texture pyramid, kernels
+                conn.send("ready")
+                continue
+            stages: dict = {}
+            t0, c0 = time.perf_counter(), time.process_time()
+            obs = _observe_epoch(scene, msg[1], batched=batched, sensor=sensor, stages=stages)
+            conn.send((time.process_time() - c0, time.perf_counter() - t0, stages, obs.n_tracks))
+
+
+def _same_matches(distance_m: float, epochs: int) -> bool:
+    """Noise-free sensor: today's and the new path give the same tracks on every epoch."""
+    from vision.sensor import SensorModel
+
+    scene = _scene(distance_m, epochs)
+    quiet = {b: SensorModel(shot_noise=False, read_noise_e=0.0, noise_stream=s) for b, s in ((False, "tiles"),
+                                                                                           (True, "pixel"))}
+    with _one_thread():
+        return _same_tracks(*(_observe(scene, batched=b, sensor=quiet[b]) for b in (False, True)))
+
+
+def run(*, quick: bool = False) -> list[BenchRow]:
+    import multiprocessing
+
     epochs, repeat = (2, 1) if quick else (8, 3)
-    sensors = {"today": SensorModel(noise_stream="tiles"), "new": SensorModel()}
-    batched = {"today": False, "new": True}
+    ctx = multiprocessing.get_context("spawn")
+    pipes, procs = {}, []
+    for name in _PATHS:
+        parent, child = ctx.Pipe()
+        proc = ctx.Process(target=_path_process, args=(child, name), daemon=True)
+        proc.start()
+        pipes[name] = parent
+        procs.append(proc)
     rows: list[BenchRow] = []
-    for d in DISTANCES_M:
-        scene = _scene(d, epochs)
-        frames = epochs * len(scene[2])
-        _observe(scene, batched=True, sensor=None)  # warm-up: scene BVH, texture pyramid, compiled kernels
-        wall = dict.fromkeys(sensors, float("inf"))
-        cpu = dict.fromkeys(sensors, float("inf"))
-        stages = {name: {} for name in sensors}
-        results = {}
-        for _ in range(repeat):
-            for name in sensors:
-                t0, c0 = time.perf_counter(), time.process_time()
-                results[name] = _observe(scene, batched=batched[name], sensor=sensors[name], stages=stages[name])
-                wall[name] = min(wall[name], time.perf_counter() - t0)
-                cpu[name] = min(cpu[name], time.process_time() - c0)
-        quiet = {name: SensorModel(shot_noise=False, read_noise_e=0.0, noise_stream=s.noise_stream)
-                 for name, s in sensors.items()}
-        same = _same_tracks(*(_observe(scene, batched=batched[n], sensor=quiet[n]) for n in sensors))
-        med = {n: int(np.median([o.n_tracks for o in results[n]])) for n in sensors}
-        check = (f"noise-free: same tracks on all {epochs} epochs: {'yes' if same else 'NO'}; with noise, median "
-                 f"tracks per epoch {med['new']} (today {med['today']})")
-        rows.append(throughput_row(
-            f"rendered mode, 3 views at {d:.0f} m: CPU time, new path", cpu["new"], cpu["today"], frames,
-            "camera-frames per CPU-s", "today's path (view by view, tile noise), one thread",
-            note=check + "; target >= 2x"))
-        rows.append(throughput_row(
-            f"rendered mode, 3 views at {d:.0f} m: wall time, new path, one thread", wall["new"], wall["today"],
-            frames, "camera-frames/s", "today's path, one thread",
-            note="wall time on a shared machine: other jobs slow both"))
-        for name in sensors:
-            per_frame = {k: 1e3 * v / (repeat * frames) for k, v in stages[name].items()}
-            rows.append(BenchRow(
-                f"{'today' if name == 'today' else 'new'} path at {d:.0f} m, one thread: CPU ms per camera-frame", sum(per_frame.values()), "ms",
-                note=", ".join(f"{k} {v:.1f}" for k, v in per_frame.items())))
+    try:
+        for d in DISTANCES_M:
+            for conn in pipes.values():
+                conn.send(("scene", d, epochs))
+            for conn in pipes.values():
+                conn.recv()
+            frames = epochs * 3
+            best = {name: [float("inf"), float("inf")] for name in _PATHS}   # CPU s, wall s
+            stages = {name: {} for name in _PATHS}
+            tracks = {name: [] for name in _PATHS}
+            for _ in range(repeat):
+                run_s = {name: [0.0, 0.0] for name in _PATHS}
+                for k in range(epochs):
+                    for name, conn in pipes.items():
+                        conn.send(("epoch", k))
+                        cpu, wall, st, n = conn.recv()
+                        run_s[name][0] += cpu
+                        run_s[name][1] += wall
+                        tracks[name].append(n)
+                        for key, v in st.items():
+                            stages[name][key] = stages[name].get(key, 0.0) + v
+                for name in _PATHS:
+                    best[name] = [min(a, b) for a, b in zip(best[name], run_s[name], strict=True)]
+            rows += _rows(d, frames, repeat, best, stages, tracks, _same_matches(d, epochs))
+    finally:
+        for conn in pipes.values():
+            conn.send(None)
+        for proc in procs:
+            proc.join(timeout=30)
+    if not quick:
+        rows.append(_allocator_row(repeat=2))
+    return rows
+
+
+def _allocator_row(*, repeat: int) -> BenchRow:
+    """``coobs run`` of the rendered quickstart (31 epochs × 3 views, SIFT, ML registration, EKF, figures), as
+    a user runs it, with ``vision.allocator.retain_freed_memory`` (the product) and without
+    (``COOBS_MALLOC_DEFAULTS=1``), alternately: CPU seconds (user + system) of the command."""
+    import os
+    import resource
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    import experiments
+
+    config = Path(experiments.__file__).parent / "configs" / "quickstart.toml"
+    best = {"retain": [float("inf")] * 2, "defaults": [float("inf")] * 2}    # CPU s, system s
+    for _ in range(repeat):
+        for name in best:
+            env = {**os.environ, "COOBS_MALLOC_DEFAULTS": "1" if name == "defaults" else "0"}
+            with tempfile.TemporaryDirectory() as out:
+                before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                subprocess.run([sys.executable, "-m", "coobs", "run", str(config), "--out", out], env=env,
+                               check=True, capture_output=True)
+                after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            sys_s = after.ru_stime - before.ru_stime
+            cpu_s = after.ru_utime - before.ru_utime + sys_s
+            if cpu_s < best[name][0]:
+                best[name] = [cpu_s, sys_s]
+    return duration_row("rendered quickstart run (coobs run quickstart.toml), CPU s, freed buffers kept",
+                        best["retain"][0], best["defaults"][0], "the same with glibc's default malloc settings",
+                        note=f"system time {best['retain'][1]:.2f} s (defaults {best['defaults'][1]:.2f} s); "
+                             "same results (the allocator changes reuse, not arithmetic)")
+
+
+def _rows(d: float, frames: int, repeat: int, best: dict, stages: dict, tracks: dict, same: bool) -> list[BenchRow]:
+    med = {n: int(np.median(t)) for n, t in tracks.items()}
+    check = (f"noise-free: same tracks on all epochs: {'yes' if same else 'NO'}; with noise, median tracks per "
+             f"epoch {med['new']} (today {med['today']})")
+    rows = [
+        throughput_row(f"rendered mode, 3 views at {d:.0f} m: CPU time, new path", best["new"][0], best["today"][0],
+                       frames, "camera-frames per CPU-s", "today's path (view by view, tile noise), one thread",
+                       note=check + "; target >= 2x"),
+        throughput_row(f"rendered mode, 3 views at {d:.0f} m: CPU time, new path with glibc's default allocator",
+                       best["new, default allocator"][0], best["today"][0], frames, "camera-frames per CPU-s",
+                       "today's path, one thread", note="the code's share of the gain (no retain_freed_memory)"),
+        throughput_row(f"rendered mode, 3 views at {d:.0f} m: wall time, new path, one thread", best["new"][1],
+                       best["today"][1], frames, "camera-frames/s", "today's path, one thread",
+                       note="wall time on a shared machine: other jobs slow both"),
+    ]
+    for name in _PATHS:
+        per_frame = {k: 1e3 * v / (repeat * frames) for k, v in stages[name].items()}
+        rows.append(BenchRow(f"{name} path at {d:.0f} m, one thread: CPU ms per camera-frame", sum(per_frame.values()),
+                             "ms", note=", ".join(f"{k} {v:.1f}" for k, v in per_frame.items())))
     return rows

@@ -207,3 +207,36 @@ def test_transform_helpers_used_by_the_tests_are_consistent():
     T = look_at([10.0, 2, 3], [0, 0, 0])
     X = np.array([1.0, 2, 3])
     np.testing.assert_allclose(transform_points(invert_pose(T), transform_points(T, X)), X)
+
+
+@pytest.mark.parametrize("binary", [False, True])
+def test_flann_neighbours_as_arrays_equal_opencvs_flann_matcher(binary):
+    """``vision.features._knn`` (a ``cv2.flann_Index`` searched to arrays) returns the very neighbours and
+    distances of ``cv2.FlannBasedMatcher.knnMatch`` with the same index and search parameters (the
+    matcher it replaced), for SIFT-like float descriptors (kd-trees) and binary ones (LSH)."""
+    import cv2
+
+    from vision.features import _knn
+
+    rng = np.random.default_rng(3)
+    if binary:
+        a = rng.integers(0, 256, size=(300, 32), dtype=np.uint8)
+        b = np.concatenate([a[:150] ^ (rng.random((150, 32)) < 0.03).astype(np.uint8),
+                            rng.integers(0, 256, size=(250, 32), dtype=np.uint8)])
+        index = {"algorithm": 6, "table_number": 6, "key_size": 12, "multi_probe_level": 1}
+    else:
+        b = rng.random((400, 128)).astype(np.float32)
+        a = np.concatenate([b[:200] + rng.normal(0.0, 0.05, (200, 128)), rng.random((100, 128))]).astype(np.float32)
+        index = {"algorithm": 1, "trees": 4}
+    idx, dist = _knn(a, b, 2, flann_trees=4, flann_checks=32)
+    cv2.setRNGSeed(0)
+    matcher = cv2.FlannBasedMatcher(index, {"checks": 32})
+    matcher.add([b])
+    matcher.train()
+    ref_idx, ref_dist = np.full((len(a), 2), -1), np.full((len(a), 2), np.inf)
+    for i, ms in enumerate(matcher.knnMatch(a, k=2)):
+        for j, m in enumerate(ms[:2]):
+            ref_idx[i, j], ref_dist[i, j] = m.trainIdx, m.distance
+    assert (ref_idx >= 0).sum() >= 0.9 * ref_idx.size          # the comparison is over found neighbours
+    np.testing.assert_array_equal(idx, ref_idx)
+    np.testing.assert_array_equal(dist, ref_dist)
