@@ -143,12 +143,14 @@ def check_cell(cell: CheckCell) -> dict:
     cal = load_calibration(observer.target.name) if (kind, noise) == ("rendered", "calibrated") else None
     # the rendered calibrated mode also gives the bound with the increment σ and, as before issue 16's
     # σ inflation, the bound and the NEES with the size σ alone
+    # (and, as before the epoch variance factor, with the table's inflation alone)
     sigmas = {} if cal is None else {"_increment": lambda o: cal.track_sigma_px(o, increment=True),
-                                     "_size": lambda o: cal.track_sigma_px(o, inflate=False)}
+                                     "_size": lambda o: cal.track_sigma_px(o, inflate=False),
+                                     "_table": lambda o: cal.track_sigma_px(o, epoch_scale=False)}
     out = {k: [] for k in ("tracks", "ml_step_rms_deg", "ransac_step_rms_deg", "crlb_deg", "ml_over_crlb",
                            *(f"{p}{key}" for key in sigmas for p in ("crlb_deg", "ml_over_crlb")),
                            "false_track_fraction", "ml_failed_steps", "ransac_failed_steps", "pairs_per_step")}
-    nees = {k: [] for k in ("nees", "nees_plain", "nees_size", "nees_size_plain")}
+    nees = {k: [] for k in ("nees", "nees_plain", "nees_size", "nees_size_plain", "nees_table", "nees_table_plain")}
     for ss in seeds:
         s_att, s_obs, s_reg = child_seeds(ss, 3)
         qs = [quat_normalize(np.random.default_rng(s_att).normal(size=4))]  # as error_map.random_attitudes
@@ -173,12 +175,13 @@ def check_cell(cell: CheckCell) -> dict:
                                                observer.target).nees)
             else:
                 nees["nees"].append(plain)
-            if "_size" in sigmas and f.obs.ok and f.obs.n_tracks:
-                o = dataclasses.replace(f.obs, track_sigma_px=sigmas["_size"](f.obs))
-                fs = Frame(obs=o, tri=triangulate_from_observation(o))
-                nees["nees_size_plain"].append(nees_of_frame(fs, qs[k]))
-                nees["nees_size"].append(track_nees(o, fs.tri.X_W, fs.tri.valid, fs.tri.views_used, qs[k],
-                                                    observer.target).nees)
+            for key in ("_size", "_table"):
+                if key in sigmas and f.obs.ok and f.obs.n_tracks:
+                    o = dataclasses.replace(f.obs, track_sigma_px=sigmas[key](f.obs))
+                    fs = Frame(obs=o, tri=triangulate_from_observation(o))
+                    nees[f"nees{key}_plain"].append(nees_of_frame(fs, qs[k]))
+                    nees[f"nees{key}"].append(track_nees(o, fs.tri.X_W, fs.tri.valid, fs.tri.views_used, qs[k],
+                                                         observer.target).nees)
         bounds = {"": np.array([_crlb_rad(frames[k - 1], frames[k], qs[k - 1], dR) for k in range(1, steps + 1)])}
         for key, fn in sigmas.items():
             bounds[key] = np.array([_crlb_rad(frames[k - 1], frames[k], qs[k - 1], dR, fn) for k in range(1, steps + 1)])
@@ -216,7 +219,7 @@ def _summary(res: dict) -> dict:
     med = {k: float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan")
            for k, v in ((k, np.asarray(v, dtype=float)) for k, v in p.items())}
     # pooled ML error over pooled bound: RMS over the trials of the per-trial ratios' squares
-    for key in ("", "_increment", "_size"):
+    for key in ("", "_increment", "_size", "_table"):
         if f"ml_over_crlb{key}" not in p:
             continue
         r = np.asarray(p[f"ml_over_crlb{key}"], dtype=float)
@@ -255,6 +258,24 @@ def markdown_table(rendered: dict, fixed: dict, calibrated: dict) -> str:
     return "\n".join(lines)
 
 
+def nees_table(results: list[dict]) -> str:
+    """Markdown table of rendered runs' triangulation NEES (mean / median over a cell's correct points)
+    with the size σ, the table's inflation and the epoch-scaled σ (the rendered mode's), and ML / CRLB
+    with the bound of the increment σ; ✓: mean NEES within 10 % of 3, ML / CRLB within 0.9-1.15."""
+    lines = ["| target | views, range, angle | points | NEES, size σ | NEES, table σ | NEES, epoch-scaled σ "
+             "| ML / CRLB, increment σ | ML failed steps |", "|---|---|---|---|---|---|---|---|"]
+    for res in results:
+        for c in res["cells"]:
+            def nees(key, c=c):
+                m = c.get(f"{key}_mean", float("nan"))
+                return f"{m:.2f} / {c.get(f'{key}_median', float('nan')):.2f}" + (" ✓" if abs(m - 3.0) <= 0.3 else "")
+            r = c.get("ml_over_crlb_increment", float("nan"))
+            lines.append(f"| {res['target']} | {c['n_views']}, {c['distance_m']:g} m, {c['axis_angle_deg']:g}° | "
+                         f"{c['nees_points']} | {nees('nees_size')} | {nees('nees_table')} | {nees('nees')} | "
+                         f"{r:.2f}{' ✓' if 0.9 <= r <= 1.15 else ''} | {c['ml_failed_steps']:.1f} |")
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """Run the check grid for one target and mode; write a JSON of per-cell medians and per-trial values."""
     ap = argparse.ArgumentParser(prog="python -m experiments.studies.fidelity_check", description=__doc__.split("\n")[0])
@@ -263,6 +284,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--table", nargs=3, metavar=("RENDERED", "FIXED", "CALIBRATED"),
                     help="print the markdown table of the three modes' result files (each a comma-separated "
                          "list whose cells are joined) instead of running")
+    ap.add_argument("--nees-table", nargs="+", metavar="RENDERED",
+                    help="print the triangulation NEES table of rendered result files instead of running")
     ap.add_argument("--trials", type=int, default=20)
     ap.add_argument("--views", default="2,3")
     ap.add_argument("--distances-m", default="40,80")
@@ -273,6 +296,9 @@ def main(argv: Sequence[str] | None = None) -> None:
         r, f, g = ({"cells": [c for p in arg.split(",") for c in json.loads(Path(p).read_text(encoding="utf-8"))["cells"]]}
                    for arg in a.table)
         print(markdown_table(r, f, g))
+        return
+    if a.nees_table:
+        print(nees_table([json.loads(Path(p).read_text(encoding="utf-8")) for p in a.nees_table]))
         return
     if a.mode is None or a.out is None:
         ap.error("--mode and --out are required (or --table)")

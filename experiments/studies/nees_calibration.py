@@ -14,9 +14,16 @@ renders give the two-camera formation (the first two cameras, matched again).  P
 track class — ``"2 of 2"`` (two-camera formation), ``"3 of 3"`` and ``"2 of 3"`` (three cameras,
 a track matched in all three or in two of them) — the σ² inflation is the mean NEES over 3.
 
+The mean NEES of one epoch depends on its attitude and Sun far more than on the class (1 to 10 at
+one range), and the epoch's own epipolar residuals show much of that
+(:func:`vision.epoch_variance.epoch_variance_factor`).  So the step also measures, per range, angle
+and class, the inflation beyond each epoch's variance factor (``epoch_sigma2_inflation``: the mean
+of NEES / factor over 3; the same for increments), and records how much the epochs' mean NEES spread
+with the size σ and over their factors (``epoch_log_nees_spread``).
+
 At run time (:meth:`vision.calibration.SiftCalibration.track_sigma_px`) a keypoint's σ is its size
-σ times the square root of the inflation of its track's class, camera spread and image scale:
-nothing from the truth.
+σ times the square root of the epoch's variance factor and of the inflation beyond it of its
+track's class, camera spread and image scale: nothing from the truth.
 """
 
 from __future__ import annotations
@@ -34,6 +41,7 @@ from formation.geometry import symmetric_views
 from reconstruction.triangulation import triangulate
 from vision.calibration import TRACK_CLASSES, SiftCalibration, track_class
 from vision.camera import PinholeCamera
+from vision.epoch_variance import epoch_variance_factor
 from vision.features import match_views
 from vision.rendered import detect_views, label_tracks, render_views
 from vision.sensor import SensorModel
@@ -64,14 +72,16 @@ class NeesSpec:
 
 
 def _epoch(cam, T_CW, kps, renders, target, q, cal, spec):
-    """Observation, triangulation and NEES of one epoch (None where nothing is matched)."""
+    """Observation, triangulation, NEES and variance factor (of the size σ) of one epoch (None where
+    nothing is matched)."""
     obs = match_views(kps, cam, T_CW, ratio=spec.ratio, epipolar_tol_px=spec.epipolar_tol_px)
     if not obs.ok or obs.n_tracks == 0:
         return None
     obs = dataclasses.replace(obs, track_sigma_px=cal.track_sigma_px(obs, inflate=False))
     obs = label_tracks(obs, renders, target, q, tol_px=spec.truth_tol_px)
     tri = triangulate(obs.uv_px, obs.K, obs.T_CW, pixel_sigma_px=obs.sigma_uv_px)
-    return obs, tri, track_nees(obs, tri.X_W, tri.valid, tri.views_used, q, target)
+    s2 = epoch_variance_factor(obs.uv_px, obs.K, obs.T_CW, obs.track_sigma_px)
+    return obs, tri, track_nees(obs, tri.X_W, tri.valid, tri.views_used, q, target), s2
 
 
 def increment_nees(a, b, q_a: np.ndarray, q_b: np.ndarray, tol_m: float) -> tuple[np.ndarray, np.ndarray]:
@@ -107,7 +117,8 @@ class _Sums:
     """Per (angle, class) lists of one range's statistics."""
 
     def __init__(self, A: int, Cn: int):
-        self.v = {k: [[[] for _ in range(Cn)] for _ in range(A)] for k in ("nees", "plain", "inc")}
+        self.v = {k: [[[] for _ in range(Cn)] for _ in range(A)] for k in ("nees", "plain", "inc", "nees_epoch",
+                                                                           "inc_epoch")}
 
     def add(self, key: str, a: int, cls: np.ndarray, values: np.ndarray) -> None:
         for c in range(len(self.v[key][a])):
@@ -124,7 +135,8 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
     """The NEES tables of one target: ``seeds[r]`` holds the attitude seed sequences of range r (the
     NEES step takes the third child of each, so the other calibration draws are unchanged)."""
     A, Cn = len(spec.angles_deg), len(TRACK_CLASSES)
-    tabs = {k: [] for k in ("mean", "median", "plain", "inc", "inc_median", "n", "n_inc")}
+    tabs = {k: [] for k in ("mean", "median", "plain", "inc", "inc_median", "n", "n_inc", "epoch", "inc_epoch")}
+    per_epoch = []                       # (mean NEES of the size σ, variance factor) of epochs with >= 8 points
     f_px = float(np.sqrt(camera.K[0, 0] * camera.K[1, 1]))
     for range_m in ranges_m:
         acc = _Sums(A, Cn)
@@ -148,15 +160,19 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
                                 cal, spec)
                     if ea is None:
                         continue
-                    obs, tri, res = ea
+                    obs, tri, res, s2 = ea
                     cls = track_class(res.n_views, n_cam)
                     acc.add("nees", a, cls, res.nees)
+                    acc.add("nees_epoch", a, cls, res.nees / s2)
                     acc.add("plain", a, cls, res.nees_plain)
+                    if res.nees.size >= 8:
+                        per_epoch.append((float(np.mean(res.nees)), s2))
                     eb = None if epochs[1][1] is None else _epoch(camera, views.T_CW[:n_cam], epochs[1][1][:n_cam],
                                                                    epochs[1][0][:n_cam], target, q2, cal, spec)
                     if eb is not None:
                         v, ia = increment_nees((obs, tri), eb[:2], q, q2, float(range_m) / f_px)
                         acc.add("inc", a, track_class(tri.views_used[ia].sum(axis=1), n_cam), v)
+                        acc.add("inc_epoch", a, track_class(tri.views_used[ia].sum(axis=1), n_cam), v / s2)
             if progress:
                 progress()
         tabs["mean"].append(acc.table("nees", np.mean))
@@ -166,6 +182,8 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
         tabs["inc"].append(acc.table("inc", np.mean))
         tabs["inc_median"].append(acc.table("inc", np.median))
         tabs["n_inc"].append(acc.table("inc", np.size))
+        tabs["epoch"].append(acc.table("nees_epoch", np.mean))
+        tabs["inc_epoch"].append(acc.table("inc_epoch", np.mean))
 
     def rows(x, nd=4):
         return [[[None if not np.isfinite(v) else round(float(v), nd) for v in c] for c in a] for a in x]
@@ -175,6 +193,9 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
         "classes": list(TRACK_CLASSES),
         "sigma2_inflation": rows(np.array(tabs["mean"]) / 3.0),
         "increment_sigma2_inflation": rows(np.array(tabs["inc"]) / 3.0),
+        "epoch_sigma2_inflation": rows(np.array(tabs["epoch"]) / 3.0),
+        "epoch_increment_sigma2_inflation": rows(np.array(tabs["inc_epoch"]) / 3.0),
+        "epoch_log_nees_spread": _spread(per_epoch),
         "points": np.nan_to_num(np.array(tabs["n"])).astype(int).tolist(),
         "increment_pairs": np.nan_to_num(np.array(tabs["n_inc"])).astype(int).tolist(),
         "nees_mean_size_sigma": rows(tabs["mean"], 3),
@@ -184,6 +205,17 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
         "increment_nees_median_size_sigma": rows(tabs["inc_median"], 3),
         "spec": {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(spec).items()},
     }
+
+
+def _spread(per_epoch: list) -> dict:
+    """How much the epochs' mean NEES spread (standard deviation of its logarithm), with the size σ and
+    over each epoch's variance factor; and their correlation."""
+    if len(per_epoch) < 3:
+        return {"epochs": len(per_epoch)}
+    nees, s2 = np.log(np.array(per_epoch)).T
+    return {"epochs": len(per_epoch), "size_sigma": round(float(np.std(nees)), 3),
+            "over_epoch_factor": round(float(np.std(nees - s2)), 3),
+            "correlation": round(float(np.corrcoef(nees, s2)[0, 1]), 3)}
 
 
 def add_triangulation_nees(data: dict, spec: NeesSpec, *, command: str = "",
@@ -199,7 +231,7 @@ def add_triangulation_nees(data: dict, spec: NeesSpec, *, command: str = "",
     camera = PinholeCamera.from_fov(int(run["image_px"]), int(run["image_px"]), fov_x_deg=float(run["fov_deg"]))
     names = list(data["targets"])
     per_target = child_seeds(np.random.SeedSequence(int(run["seed"])), len(run["targets"]))
-    out = {**data, "format_version": max(2, int(data.get("format_version", 1))), "targets": dict(data["targets"])}
+    out = {**data, "format_version": max(3, int(data.get("format_version", 1))), "targets": dict(data["targets"])}
     for name in names:
         ss_t = per_target[list(run["targets"]).index(name)]
         t = out["targets"][name]

@@ -65,4 +65,7 @@ def test_nees_only_adds_the_inflation_and_keeps_the_other_tables(tmp_path):
     assert t["sigma_px"] == shipped["targets"]["fy1"]["sigma_px"] and t["keypoints"] == shipped["targets"]["fy1"]["keypoints"]
     p = data["provenance"]["triangulation_nees"]
     assert p["command"].startswith("coobs calibrate --nees-only --quick") and p["spec"]["attitudes"] == 1
-    assert data["format_version"] == 2 and len(t["triangulation_nees"]["points"]) == len(t["ranges_m"])
+    assert data["format_version"] == 3 and len(t["triangulation_nees"]["points"]) == len(t["ranges_m"])
+    tn = t["triangulation_nees"]                 # the tables beyond each epoch's variance factor, same shape
+    assert np.shape(tn["epoch_sigma2_inflation"]) == np.shape(tn["sigma2_inflation"])
+    assert np.shape(tn["epoch_increment_sigma2_inflation"]) == np.shape(tn["increment_sigma2_inflation"])

@@ -9,7 +9,9 @@ held at the nearest calibrated value (``docs/vision.md`` says where that matters
 The σ of a keypoint in a triangulated track (:meth:`SiftCalibration.track_sigma_px`) is its size σ
 times the square root of the measured σ² inflation of its track's class (:data:`TRACK_CLASSES`),
 its cameras' spread and image scale, where the file has that table (``triangulation_nees``, from
-:mod:`experiments.studies.nees_calibration`); files without it give inflation 1.
+:mod:`experiments.studies.nees_calibration`); files without it give inflation 1.  Where the file has
+the epoch tables, the inflation is the epoch's own variance factor (:mod:`vision.epoch_variance`)
+times the inflation measured beyond it.
 """
 
 from __future__ import annotations
@@ -119,7 +121,8 @@ def _inflation(t: dict) -> dict:
     nees = t.get("triangulation_nees")
     if nees is None:
         ones = np.ones((len(t["ranges_m"]), 1, len(TRACK_CLASSES)))
-        return {"nees_angle_deg": np.array([10.0]), "sigma2_inflation": ones, "increment_sigma2_inflation": ones}
+        return {"nees_angle_deg": np.array([10.0]), "sigma2_inflation": ones, "increment_sigma2_inflation": ones,
+                "epoch_sigma2_inflation": None, "epoch_increment_sigma2_inflation": None}
 
     def table(key: str) -> np.ndarray:
         rows = []
@@ -131,8 +134,11 @@ def _inflation(t: dict) -> dict:
             rows.append(np.where(np.isfinite(tab), tab, np.nanmean(tab, axis=1, keepdims=True)))
         return np.stack(rows)
 
+    epoch = "epoch_sigma2_inflation" in nees          # files before the epoch factor have only the tables
     return {"nees_angle_deg": np.asarray(nees["angle_deg"], dtype=float), "sigma2_inflation": table("sigma2_inflation"),
-            "increment_sigma2_inflation": table("increment_sigma2_inflation")}
+            "increment_sigma2_inflation": table("increment_sigma2_inflation"),
+            "epoch_sigma2_inflation": table("epoch_sigma2_inflation") if epoch else None,
+            "epoch_increment_sigma2_inflation": table("epoch_increment_sigma2_inflation") if epoch else None}
 
 
 @dataclass(frozen=True, eq=False)
@@ -180,6 +186,9 @@ class SiftCalibration:
     increment_sigma2_inflation : ndarray (R, A, len(TRACK_CLASSES))
         The same for the change of a feature's triangulated body point between two epochs 1° apart
         (smaller: much of a keypoint's error is the same at both epochs and cancels in an increment).
+    epoch_sigma2_inflation, epoch_increment_sigma2_inflation : ndarray (R, A, len(TRACK_CLASSES)) or None
+        The same two over the epoch's variance factor (:func:`vision.epoch_variance.epoch_variance_factor`
+        of the size σ): the σ² beyond what the epoch's residuals show (None in files without them).
     """
 
     target: str
@@ -203,6 +212,8 @@ class SiftCalibration:
     nees_angle_deg: np.ndarray = field(default_factory=lambda: np.array([10.0]))
     sigma2_inflation: np.ndarray | None = None
     increment_sigma2_inflation: np.ndarray | None = None
+    epoch_sigma2_inflation: np.ndarray | None = None
+    epoch_increment_sigma2_inflation: np.ndarray | None = None
 
     @classmethod
     def from_dict(cls, data: dict, target: str) -> SiftCalibration:
@@ -287,12 +298,17 @@ class SiftCalibration:
         return np.where(np.isfinite(s), sig, np.nan)
 
     def sigma_inflation(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike, track_class: ArrayLike, *,
-                        increment: bool = False) -> np.ndarray:
+                        increment: bool = False, epoch: bool = False) -> np.ndarray:
         """σ² inflation of keypoints at this footprint, in tracks whose cameras are ``angle_deg`` apart
         (largest angle between two of them, about the target) of class ``track_class`` (index into
         :data:`TRACK_CLASSES`): linear in angle and log footprint, held beyond the calibrated ones.
-        ``increment``: the inflation of an inter-epoch increment instead of a triangulated point."""
-        tab = self.increment_sigma2_inflation if increment else self.sigma2_inflation
+        ``increment``: the inflation of an inter-epoch increment instead of a triangulated point;
+        ``epoch``: the inflation over the epoch's variance factor (``epoch_sigma2_inflation``)."""
+        if epoch and self.epoch_sigma2_inflation is None:
+            raise ValueError("epoch: this calibration has no epoch_sigma2_inflation table (coobs calibrate --nees-only)")
+        tab = {(False, False): self.sigma2_inflation, (True, False): self.increment_sigma2_inflation,
+               (False, True): self.epoch_sigma2_inflation,
+               (True, True): self.epoch_increment_sigma2_inflation}[(bool(increment), bool(epoch))]
         return self._inflation_at((tab,), footprint_m_per_px, angle_deg, track_class)[0]
 
     def sigma_inflations(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike,
@@ -319,13 +335,17 @@ class SiftCalibration:
 
         return [(1.0 - w) * at(tab, i) + w * at(tab, j) for tab in tables]
 
-    def track_sigma_px(self, obs, *, inflate: bool = True, increment: bool = False) -> np.ndarray:
+    def track_sigma_px(self, obs, *, inflate: bool = True, increment: bool = False,
+                       epoch_scale: bool = True) -> np.ndarray:
         """``(M, n)`` σ per track and view of an observation (NaN where a track is absent): the size σ
         of each keypoint at its view's image scale, times √(σ² inflation) of the track
         (:meth:`sigma_inflation`; its class from the views it has and the cameras, its angle the
-        largest between two of its cameras about the origin of H, where the target is).  ``increment``:
-        the σ of the same keypoints for an inter-epoch increment (its Cramér–Rao bound), ``inflate=False``:
-        the size σ alone."""
+        largest between two of its cameras about the origin of H, where the target is).  Where the file
+        has the epoch tables and ``epoch_scale``, the inflation is the epoch's variance factor of the
+        size σ (:func:`vision.epoch_variance.epoch_variance_factor`, from this observation's own
+        epipolar residuals) times the inflation beyond it; otherwise the table's average inflation.
+        ``increment``: the σ of the same keypoints for an inter-epoch increment (its Cramér–Rao bound),
+        ``inflate=False``: the size σ alone."""
         fp = np.linalg.norm(obs.T_CW[:, :3, 3], axis=1) / np.sqrt(obs.K[:, 0, 0] * obs.K[:, 1, 1])
         sig = self.sigma_for_size(obs.keypoint_size_px, fp[None, :])
         if not inflate:
@@ -338,8 +358,13 @@ class SiftCalibration:
         both = seen[:, :, None] & seen[:, None, :]
         angle = np.max(np.where(both, pair[None], 0.0), axis=(1, 2))
         cls = track_class(seen.sum(axis=1), obs.n_views)
+        epoch = bool(epoch_scale) and self.epoch_sigma2_inflation is not None
         infl = self.sigma_inflation(np.broadcast_to(fp[None, :], sig.shape), angle[:, None], cls[:, None],
-                                    increment=increment)
+                                    increment=increment, epoch=epoch)
+        if epoch:
+            from vision.epoch_variance import epoch_variance_factor
+
+            infl = infl * epoch_variance_factor(obs.uv_px, obs.K, obs.T_CW, sig)
         return sig * np.sqrt(infl)
 
     def density(self, footprint_m_per_px: ArrayLike, cos_view: ArrayLike, sun_bin: ArrayLike,
