@@ -72,7 +72,8 @@ class RenderedObserver(Observer):
         ``"sift"``, ``"orb"``, ``"akaze"`` or ``"surf"``.
     noise_model : str
         ``"fixed"``: every keypoint gets ``pixel_sigma_px``; ``"calibrated"``: each keypoint the σ
-        measured for its SIFT size (:mod:`vision.calibration`).
+        measured for its SIFT size, scaled by its epoch's variance factor (:mod:`vision.calibration`,
+        :mod:`vision.epoch_variance`).
     earth_background : bool
         The Earth behind the target and its albedo light (:class:`vision.earth.EarthScene`, drawn once
         from ``earth_seed`` for a target ``orbit_radius_m`` from the Earth's centre, mean albedo ``earth_albedo``).

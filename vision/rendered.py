@@ -170,7 +170,8 @@ def observe_renders(renders: Sequence[RenderResult], target: Target, q_HT: Array
     ``threads``: views detected concurrently (:func:`detect_views`; the same keypoints).
 
     ``noise_model="fixed"`` gives every keypoint ``pixel_sigma_px``; ``"calibrated"`` gives each one
-    the σ measured for its SIFT size at its view's image scale, inflated as measured for its track
+    the σ measured for its SIFT size at its view's image scale, scaled by the epoch's own variance
+    factor (:mod:`vision.epoch_variance`) and inflated as measured beyond it for its track
     (:meth:`vision.calibration.SiftCalibration.track_sigma_px`; ``calibration``, default: the shipped calibration of the
     target, :func:`vision.calibration.load_calibration`) as ``track_sigma_px``, and records their
     root mean square as ``pixel_sigma_px``.
