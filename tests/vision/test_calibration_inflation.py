@@ -87,3 +87,39 @@ def test_the_shipped_file_has_the_inflation_with_its_provenance(data):
         assert np.all((cal.sigma2_inflation > 0.2) & (cal.sigma2_inflation < 5.0))
         # much of a keypoint's error is the same at two epochs 1° apart: an increment sees less of it
         assert np.mean(cal.increment_sigma2_inflation) < np.mean(cal.sigma2_inflation)
+
+
+def test_epoch_tables_scale_the_inflation_by_the_epochs_own_factor(data):
+    """With the epoch tables, σ² = size σ² × the epoch's variance factor (vision.epoch_variance, here of
+    tracks whose keypoints all sit at one pixel, so each pair's residual is that pixel's epipolar
+    residual) × the inflation beyond it; without them, asking for them is refused by name."""
+    from vision.epoch_variance import epoch_variance_factor
+
+    d = _with_table(data)
+    plain = SiftCalibration.from_dict(d, "fy1")
+    with pytest.raises(ValueError, match="epoch"):
+        plain.sigma_inflation(plain.footprint_m_per_px[0], 10.0, 0, epoch=True)
+    t = d["targets"]["fy1"]["triangulation_nees"]
+    t["epoch_sigma2_inflation"] = [[[2.0, 2.0, 2.0], [2.0, 2.0, 2.0]], [[2.0, 2.0, 2.0], [2.0, 2.0, 2.0]]]
+    t["epoch_increment_sigma2_inflation"] = [[[0.5, 0.5, 0.5], [0.5, 0.5, 0.5]], [[0.5, 0.5, 0.5], [0.5, 0.5, 0.5]]]
+    cal = SiftCalibration.from_dict(d, "fy1")
+    obs = _observation(3, np.array([[True, True, True], [True, False, True]]))
+    size = cal.track_sigma_px(obs, inflate=False)
+    factor = epoch_variance_factor(obs.uv_px, obs.K, obs.T_CW, size)
+    seen = obs.seen
+    np.testing.assert_allclose((cal.track_sigma_px(obs)[seen] / size[seen]) ** 2, 2.0 * factor, rtol=1e-9)
+    np.testing.assert_allclose((cal.track_sigma_px(obs, increment=True)[seen] / size[seen]) ** 2, 0.5 * factor,
+                               rtol=1e-9)
+    # epoch_scale=False: the average table, as before the epoch factor
+    np.testing.assert_allclose(cal.track_sigma_px(obs, epoch_scale=False), plain.track_sigma_px(obs), rtol=1e-12)
+
+
+def test_the_shipped_epoch_factor_explains_part_of_the_epochs_spread(data):
+    """The calibration's own record: dividing each epoch's mean NEES by its factor shrinks the spread of
+    their logarithm (FY-1 0.59 -> 0.33, TOPEX 0.41 -> 0.27 when made), with a positive correlation."""
+    for name in ("fy1", "topex"):
+        s = data["targets"][name]["triangulation_nees"]["epoch_log_nees_spread"]
+        assert s["epochs"] >= 50
+        assert s["over_epoch_factor"] < 0.8 * s["size_sigma"] and s["correlation"] > 0.5
+        cal = load_calibration(name)
+        assert cal.epoch_sigma2_inflation.shape == cal.sigma2_inflation.shape
