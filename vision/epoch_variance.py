@@ -46,7 +46,7 @@ def epipolar_chi2(uv_px: ArrayLike, K: ArrayLike, T_CW: ArrayLike, sigma_uv_px: 
     sigma_uv_px : array_like, shape (M, n)
         σ of each keypoint, px.
     """
-    from vision.features import fundamental_from_poses
+    from vision.features import epipolar_residual, fundamental_from_poses
 
     uv = np.asarray(uv_px, dtype=float)
     sig = np.asarray(sigma_uv_px, dtype=float)
@@ -60,10 +60,7 @@ def epipolar_chi2(uv_px: ArrayLike, K: ArrayLike, T_CW: ArrayLike, sigma_uv_px: 
             if not both.any():
                 continue
             F = fundamental_from_poses(K[i], T[i], K[j], T[j])
-            x_i = np.concatenate([uv[both, i], np.ones((both.sum(), 1))], axis=1)
-            x_j = np.concatenate([uv[both, j], np.ones((both.sum(), 1))], axis=1)
-            l_i, l_j = x_j @ F.T, x_i @ F          # epipolar lines in image i and in image j
-            e = np.sum(x_i * l_i, axis=1)
+            e, l_i, l_j = epipolar_residual(F, uv[both, i], uv[both, j])   # lines in image i and in image j
             var = sig[both, i] ** 2 * (l_i[:, 0] ** 2 + l_i[:, 1] ** 2) + sig[both, j] ** 2 * (l_j[:, 0] ** 2 + l_j[:, 1] ** 2)
             out.append(e ** 2 / var)
     return np.concatenate(out) if out else np.zeros(0)

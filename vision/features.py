@@ -35,6 +35,7 @@ __all__ = [
     "available_detectors",
     "detect",
     "epipolar_distance_px",
+    "epipolar_residual",
     "fundamental_from_poses",
     "match_pair",
     "match_views",
@@ -215,11 +216,9 @@ def fundamental_from_poses(K_A: ArrayLike, T_AW: ArrayLike, K_B: ArrayLike, T_BW
     return F / np.linalg.norm(F)
 
 
-def epipolar_distance_px(F: ArrayLike, uv_A: ArrayLike, uv_B: ArrayLike) -> np.ndarray:
-    """Larger of the two point-to-epipolar-line distances, pixels (``(N,)`` from ``(N, 2)`` inputs).
-
-    The line of ``x_B`` in image A is ``F x_B``; that of ``x_A`` in image B is ``Fᵀ x_A``.
-    """
+def epipolar_residual(F: ArrayLike, uv_A: ArrayLike, uv_B: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Algebraic epipolar residual ``r = x_Aᵀ F x_B`` (``(N,)`` from ``(N, 2)`` inputs) and the two
+    epipolar lines: ``l_A = F x_B`` in image A and ``l_B = Fᵀ x_A`` in image B, ``(N, 3)``."""
     F = np.asarray(F, dtype=float)
     a = np.asarray(uv_A, dtype=float)
     b = np.asarray(uv_B, dtype=float)
@@ -227,7 +226,15 @@ def epipolar_distance_px(F: ArrayLike, uv_A: ArrayLike, uv_B: ArrayLike) -> np.n
     xb = np.concatenate([b, np.ones(b.shape[:-1] + (1,))], axis=-1)
     la = xb @ F.T            # lines in image A
     lb = xa @ F              # lines in image B
-    r = np.sum(xa * la, axis=-1)
+    return np.sum(xa * la, axis=-1), la, lb
+
+
+def epipolar_distance_px(F: ArrayLike, uv_A: ArrayLike, uv_B: ArrayLike) -> np.ndarray:
+    """Larger of the two point-to-epipolar-line distances, pixels (``(N,)`` from ``(N, 2)`` inputs).
+
+    The line of ``x_B`` in image A is ``F x_B``; that of ``x_A`` in image B is ``Fᵀ x_A``.
+    """
+    r, la, lb = epipolar_residual(F, uv_A, uv_B)
     with np.errstate(divide="ignore", invalid="ignore"):
         da = np.abs(r) / np.hypot(la[..., 0], la[..., 1])
         db = np.abs(r) / np.hypot(lb[..., 0], lb[..., 1])
@@ -250,8 +257,8 @@ def _flann_index(desc_b: np.ndarray, *, flann_trees: int, flann_checks: int) -> 
     # FLANN's randomised kd-trees draw from OpenCV's (thread-local) RNG when they are built: seed it
     # so that matching is reproducible (searching draws nothing, so a built index can be reused).
     cv2.setRNGSeed(0)
-    return _FlannIndex(cv2.flann_Index(np.ascontiguousarray(desc_b), params), len(desc_b),
-                       int(flann_checks), desc_b.dtype == np.uint8)
+    return _FlannIndex(cv2.flann_Index(np.ascontiguousarray(desc_b), params), int(flann_checks),
+                       desc_b.dtype == np.uint8)
 
 
 class _FlannIndex:
@@ -263,8 +270,8 @@ class _FlannIndex:
     matcher does) or Hamming for binary descriptors.
     """
 
-    def __init__(self, index, n: int, checks: int, binary: bool):
-        self.index, self.n, self.checks, self.binary = index, n, checks, binary
+    def __init__(self, index, checks: int, binary: bool):
+        self.index, self.checks, self.binary = index, checks, binary
 
     def search(self, desc_a: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """``(idx (N, k), dist (N, k))``, neighbours sorted by distance, -1 / inf where none was found."""

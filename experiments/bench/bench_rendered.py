@@ -142,11 +142,10 @@ def _path_process(conn, name: str) -> None:
             conn.send((time.process_time() - c0, time.perf_counter() - t0, stages, obs.n_tracks))
 
 
-def _same_matches(distance_m: float, epochs: int) -> bool:
-    """Noise-free sensor: today's and the new path give the same tracks on every epoch."""
+def _same_matches(scene) -> bool:
+    """Noise-free sensor: today's and the new path give the same tracks on every epoch of ``scene``."""
     from vision.sensor import SensorModel
 
-    scene = _scene(distance_m, epochs)
     quiet = {b: SensorModel(shot_noise=False, read_noise_e=0.0, noise_stream=s) for b, s in ((False, "tiles"),
                                                                                            (True, "pixel"))}
     with _one_thread():
@@ -172,7 +171,8 @@ def run(*, quick: bool = False) -> list[BenchRow]:
                 conn.send(("scene", d, epochs))
             for conn in pipes.values():
                 conn.recv()
-            frames = epochs * 3
+            scene = _scene(d, epochs)                # the parent's copy: the views and the noise-free check
+            frames = epochs * len(scene[2])
             best = {name: [float("inf"), float("inf")] for name in _PATHS}   # CPU s, wall s
             stages = {name: {} for name in _PATHS}
             tracks = {name: [] for name in _PATHS}
@@ -189,7 +189,7 @@ def run(*, quick: bool = False) -> list[BenchRow]:
                             stages[name][key] = stages[name].get(key, 0.0) + v
                 for name in _PATHS:
                     best[name] = [min(a, b) for a, b in zip(best[name], run_s[name], strict=True)]
-            rows += _rows(d, frames, repeat, best, stages, tracks, _same_matches(d, epochs))
+            rows += _rows(d, frames, repeat, best, stages, tracks, _same_matches(scene))
     finally:
         for conn in pipes.values():
             conn.send(None)
