@@ -10,7 +10,8 @@ silhouettes).  Then, with the statistics of :mod:`vision.calibration` measured o
    uniform per feature for the whole call, so detections are correlated across views and persist
    across epochs, as a textured spot is detected again when the view barely changes.
 2. **Matching across views**: a pair of views (i, j) that both detect f matches it with the measured
-   survival ``S(z/f, angle between the cameras)`` through a Gaussian copula whose correlation
+   survival ``S(z/f, angle between the cameras)``, times the measured factor of the pair's Sun phase
+   (the Sun's angle from the pair's mean line of sight; :meth:`SiftCalibration.pair_survival_at`), through a Gaussian copula whose correlation
    between pairs reproduces the measured ratio of three-view to two-view tracks; tracks are the
    connected components of the pair matches with at least ``min_views`` views.  The matches are
    re-decided every epoch, the copula variables an AR(1) process over the epochs whose correlation
@@ -53,8 +54,8 @@ from vision.observation import (
 from vision.outer_surface import outer_surface_area_m2
 from vision.target import Target
 
-__all__ = ["calibrated_feature_count", "detections", "filler_feature_count", "pair_copula_correlation", "temporal_correlation", "observe_epochs_calibrated",
-           "observe_trials_calibrated"]
+__all__ = ["calibrated_feature_count", "detections", "filler_feature_count", "pair_copula_correlation",
+           "pair_phase_deg", "temporal_correlation", "observe_epochs_calibrated", "observe_trials_calibrated"]
 
 #: margin on the largest measured density when sizing the feature set
 _DENSITY_MARGIN = 1.2
@@ -218,7 +219,8 @@ def observe_trials_calibrated(cams, T, target, q, sun, fsun, feats, rngs, *, cal
     for r in range(len(rngs)):
         keep, g, fp = _detect_trial(st, r, cams, T[r], q[r], sun[r], fsun[r], feats, target, cal, margin_px)
         out.append(_trial(g, fp, keep, T[r], fsun[r], feats, cal, rngs[r], target=target, cams=cams,
-                          min_views=min_views, descriptor_noise=descriptor_noise, margin_px=margin_px))
+                          min_views=min_views, descriptor_noise=descriptor_noise, margin_px=margin_px,
+                          phase_deg=pair_phase_deg(T[r], sun[r])))
     return out
 
 
@@ -411,10 +413,26 @@ def _descriptors(labels: np.ndarray, feats, extra: tuple[np.ndarray, np.ndarray]
     return out
 
 
+def pair_phase_deg(T_CW: np.ndarray, sun_H: np.ndarray) -> np.ndarray:
+    """Sun phase of every pair of cameras, degrees ``(E, n, n)``: the angle between the direction to the
+    Sun and the pair's mean line of sight from the target (at the origin of H) to the two cameras
+    (on the diagonal: the camera's own phase).  ``T_CW (E, n, 4, 4)``, ``sun_H (E, 3)``."""
+    T = np.asarray(T_CW, dtype=float)
+    c_H = -np.einsum("enji,enj->eni", T[..., :3, :3], T[..., :3, 3])          # camera centres
+    u = c_H / np.linalg.norm(c_H, axis=-1, keepdims=True)
+    mean = u[:, :, None, :] + u[:, None, :, :]
+    s = np.asarray(sun_H, dtype=float)
+    s = s / np.linalg.norm(s, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = np.einsum("eijk,ek->eij", mean, s) / np.linalg.norm(mean, axis=-1)
+    return np.degrees(np.arccos(np.clip(np.nan_to_num(c, nan=1.0), -1.0, 1.0)))
+
+
 def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, descriptor_noise,
-           margin_px) -> list[Observation]:
+           margin_px, phase_deg) -> list[Observation]:
     """Matching, localisation, false matches and association of one trial's epochs, from its detections
-    ``g`` (:func:`_detect`) of the features ``ids`` of ``feats``."""
+    ``g`` (:func:`_detect`) of the features ``ids`` of ``feats``; ``phase_deg (E, n, n)`` the pairs' Sun
+    phases (:func:`pair_phase_deg`)."""
     from vision.geometric import _false_matches
 
     E, n = fp.shape[:2]
@@ -455,7 +473,7 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         with np.errstate(invalid="ignore", divide="ignore"):
             fp_f = np.where(n_det > 0, np.sum(np.where(det, fp_c[k].T, 0.0), axis=1) / n_det, np.nan)  # (C,)
         two = np.nonzero(n_det >= 2)[0]
-        S = cal.pair_survival_at(np.nan_to_num(fp_f[two], nan=1.0)[:, None, None], ang[None])
+        S = cal.pair_survival_at(np.nan_to_num(fp_f[two], nan=1.0)[:, None, None], ang[None], phase_deg[k][None])
         if feats.sites is not None:                                       # distinct sites match more often
             site = cand_id[two] < len(feats.sites)
             S = np.where(site[:, None, None], feats.sites.pair_survival(

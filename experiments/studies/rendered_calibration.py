@@ -13,7 +13,9 @@ observation mode does (:func:`vision.render.render`, :func:`vision.rendered.fore
   1.5 px); a match is correct when the surface points cast through both keypoints reproject within
   ``truth_tol_px`` of each other's keypoint (the test of :func:`vision.rendered.label_tracks`).
   *Survival* is correct matches over A's keypoints whose surface point the second camera sees
-  (in the image, unoccluded); the *false-match rate* is wrong over all matches;
+  (in the image, unoccluded); the *false-match rate* is wrong over all matches.  The same counts
+  are kept per Sun phase bin of the pair (the Sun's angle from the pair's mean line of sight), with
+  the keypoints the second camera detects again within ``truth_tol_px`` of their surface point;
 * **keypoint localisation σ per SIFT size**: for correct matches, the residual between B's keypoint
   and the projection of the surface point under A's keypoint has variance σ²(size_A) + σ²(size_B)
   per axis; σ² per size bin is the non-negative least-squares solution over all matches;
@@ -143,6 +145,23 @@ def _project(r: RenderResult, q_HT: np.ndarray, X_T: np.ndarray) -> tuple[np.nda
     return r.camera.project(X_C), X_C[:, 2]
 
 
+def _phase_bin(sun: np.ndarray, line_of_sight: np.ndarray) -> int:
+    """Phase bin of the Sun direction seen along ``line_of_sight`` (target to camera(s), any length)."""
+    c = float(sun @ line_of_sight) / float(np.linalg.norm(line_of_sight))
+    phase = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+    return min(int(np.searchsorted(_PHASE_EDGES_DEG, phase, side="right")) - 1, len(_PHASE_EDGES_DEG) - 2)
+
+
+def _redetected(uv_expected: np.ndarray, uv_keypoints: np.ndarray, tol_px: float) -> int:
+    """How many expected positions have a keypoint within ``tol_px``."""
+    from scipy.spatial import cKDTree
+
+    if len(uv_expected) == 0 or len(uv_keypoints) == 0:
+        return 0
+    d, _ = cKDTree(uv_keypoints).query(uv_expected, distance_upper_bound=tol_px)
+    return int(np.sum(np.isfinite(d)))
+
+
 def _seen_in(r: RenderResult, q_HT: np.ndarray, X_T: np.ndarray) -> np.ndarray:
     """Body points inside the image of ``r`` and not hidden (depth within 1 % of the rendered depth)."""
     uv, z = _project(r, q_HT, X_T)
@@ -210,6 +229,8 @@ class _Tally:
         self.phase_area = np.zeros(len(_PHASE_EDGES_DEG) - 1)
         a, d = len(spec.cross_view_deg), len(spec.epoch_change_deg)
         self.cv = {k: np.zeros(a) for k in ("matchable", "matches", "correct")}
+        # the same counts per Sun phase bin of the pair (the Sun's angle from the pair's mean line of sight)
+        self.cv_phase = {k: np.zeros((a, len(_PHASE_EDGES_DEG) - 1)) for k in ("matchable", "redetected", "correct")}
         self.ep = {k: np.zeros(d) for k in ("tracks_visible", "redetected", "associations", "correct")}
         self.pair_bins: list[np.ndarray] = []   # (k, 2) size bins of A and B
         self.pair_e2: list[np.ndarray] = []     # (k,) mean squared residual per axis, px²
@@ -238,7 +259,6 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
         sun /= np.linalg.norm(sun)
         if np.degrees(np.arccos(np.clip(sun @ eA, -1, 1))) <= spec.sun_phase_max_deg:
             break
-    phase = np.degrees(np.arccos(np.clip(sun @ eA, -1, 1)))
     up = np.cross(eA, g.normal(size=3))
     up /= np.linalg.norm(up)
     T_A = look_at(range_m * eA, np.zeros(3), up)
@@ -249,7 +269,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
     v, u, vb, sb, area, mat = _surface_geometry(rA, target, q, sun)
     np.add.at(t.area, (vb, sb), area)
     np.add.at(t.mat_area, mat, area)
-    pb = min(int(np.searchsorted(_PHASE_EDGES_DEG, phase, side="right")) - 1, len(t.phase_kp) - 1)
+    pb = _phase_bin(sun, eA)
     t.phase_area[pb] += area.sum()
     pix = np.full(rA.mask.shape, -1, dtype=np.int64)
     pix[v, u] = np.arange(len(v))
@@ -276,6 +296,9 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
         seenB = np.zeros(len(kA), bool)
         seenB[fin] = _seen_in(rB, q, XA[fin])
         t.cv["matchable"][a] += seenB.sum()
+        pp = _phase_bin(sun, eA + R @ eA)
+        t.cv_phase["matchable"][a, pp] += seenB.sum()
+        t.cv_phase["redetected"][a, pp] += _redetected(_project(rB, q, XA[seenB])[0], kB.uv_px, spec.truth_tol_px)
         F = fundamental_from_poses(cam.K, T_A, cam.K, T_B)
         m = match_pair(kA, kB, ratio=spec.ratio, F_AB=F, epipolar_tol_px=spec.epipolar_tol_px)
         if len(m) == 0:
@@ -284,6 +307,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
         ok = _correct(rA, q, XA[m[:, 0]], kA.uv_px[m[:, 0]], rB, q, XB, kB.uv_px[m[:, 1]], spec.truth_tol_px)
         t.cv["matches"][a] += len(m)
         t.cv["correct"][a] += ok.sum()
+        t.cv_phase["correct"][a, pp] += ok.sum()
         mc = m[ok]
         res = kB.uv_px[mc[:, 1]] - _project(rB, q, XA[mc[:, 0]])[0]
         t.pair_e2.append(np.mean(res**2, axis=1))
@@ -485,6 +509,8 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
             "persistence_candidates": [t.persist_den for t in per_range],
             "persistence": [None if not t.persist_den else t.persist_num / t.persist_den for t in per_range],
             "three_view_tracks": [t.tracks3 for t in per_range],
+            **{f"phase_{k}": [t.cv_phase[k].astype(int).tolist() for t in per_range]
+               for k in ("matchable", "redetected", "correct")},
         },
         "association": {
             "change_deg": list(spec.epoch_change_deg),

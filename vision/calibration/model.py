@@ -42,6 +42,9 @@ _MIN_CELL_AREA_M2 = 2.0
 _MIN_SIGMA_PX = 0.02
 #: pairs a size bin needs at one range to use that range's own σ
 _MIN_PAIRS_PER_BIN = 20
+#: correct matches a Sun phase bin must be expected to have (under no phase effect) to get its own
+#: survival factor; the others take the nearest bin's
+_MIN_EXPECTED_PER_PHASE = 20.0
 
 
 def calibration_path() -> Path:
@@ -67,6 +70,22 @@ def _table(rows: list) -> np.ndarray:
 def _conditional(num: list, den: list) -> list:
     """``num / den`` per range and column (None where den is 0), at most 1."""
     return [[None if d <= 0 else min(1.0, n / d) for n, d in zip(rn, rd, strict=True)] for rn, rd in zip(num, den, strict=True)]
+
+
+def _phase_factor(t: dict) -> np.ndarray | None:
+    """Cross-view survival per Sun phase bin over the survival its pairs' range and angle give, pooled
+    over ranges and angles (None in files without the phase counts): correct matches of a phase bin
+    over those its matchable keypoints would have at the table's survival.  Its mean over the
+    calibration's pairs is 1 by construction."""
+    cv = t["cross_view"]
+    if "phase_correct" not in cv:
+        return None
+    correct = np.asarray(cv["phase_correct"], dtype=float)          # (R, A, P)
+    matchable = np.asarray(cv["phase_matchable"], dtype=float)
+    expected = np.sum(matchable * _table(cv["survival"])[:, :, None], axis=(0, 1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g = np.where(expected >= _MIN_EXPECTED_PER_PHASE, correct.sum(axis=(0, 1)) / expected, np.nan)
+    return _fill_nearest(list(g))
 
 
 def _sigma_by_range(t: dict) -> np.ndarray:
@@ -171,6 +190,11 @@ class SiftCalibration:
     material_factor : ndarray (R, P)
         Density of each of the target's P materials over the target's mean (area-weighted mean 1;
         1 for materials with less than 2 m² seen).
+    pair_survival_phase_factor : ndarray (P,) or None
+        Cross-view survival in each Sun phase bin of ``phase_edges_deg`` (the Sun's angle from the
+        pair's mean line of sight) over the range-and-angle table's (None in files without it: no
+        phase dependence).
+    phase_edges_deg : ndarray (P + 1,)
     track_persistence : ndarray (R,)
         Fraction of the tracks of two cameras at the first cross-view angle that are tracks of the
         same cameras again after the first epoch change (NaN where not measured).
@@ -214,6 +238,8 @@ class SiftCalibration:
     increment_sigma2_inflation: np.ndarray | None = None
     epoch_sigma2_inflation: np.ndarray | None = None
     epoch_increment_sigma2_inflation: np.ndarray | None = None
+    pair_survival_phase_factor: np.ndarray | None = None
+    phase_edges_deg: np.ndarray = field(default_factory=lambda: np.linspace(0.0, 180.0, 7))
 
     @classmethod
     def from_dict(cls, data: dict, target: str) -> SiftCalibration:
@@ -253,6 +279,8 @@ class SiftCalibration:
             three_over_two_ratio=(float(sum(t["cross_view"]["three_view_tracks"]))
                                   / max(1.0, float(sum(t["cross_view"]["two_view_tracks"])))),
             provenance=dict(data.get("provenance", {})),
+            pair_survival_phase_factor=_phase_factor(t),
+            phase_edges_deg=np.asarray(data.get("phase_edges_deg", np.linspace(0.0, 180.0, 7)), dtype=float),
             **_inflation(t),
         )
 
@@ -442,9 +470,24 @@ class SiftCalibration:
         w = np.clip(w, 0.0, 1.0)
         return np.clip((1.0 - w) * np.choose(i, rows) + w * np.choose(j, rows), 0.0, 1.0)
 
-    def pair_survival_at(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike) -> np.ndarray:
-        """Probability that a keypoint seen by a second camera ``angle_deg`` away is correctly matched."""
-        return self._rate(self.cross_view_deg, self.pair_survival, footprint_m_per_px, angle_deg)
+    def pair_survival_at(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike,
+                         phase_deg: ArrayLike | None = None) -> np.ndarray:
+        """Probability that a keypoint seen by a second camera ``angle_deg`` away is correctly matched;
+        with ``phase_deg`` (the Sun's angle from the pair's mean line of sight) times the survival
+        factor of that phase (:meth:`survival_phase_factor_at`)."""
+        S = self._rate(self.cross_view_deg, self.pair_survival, footprint_m_per_px, angle_deg)
+        if phase_deg is None:
+            return S
+        return np.clip(S * self.survival_phase_factor_at(phase_deg), 0.0, 1.0)
+
+    def survival_phase_factor_at(self, phase_deg: ArrayLike) -> np.ndarray:
+        """The cross-view survival factor of a Sun phase, degrees: linear between the phase bins' centres,
+        held beyond them (1 where the file has no phase counts)."""
+        ph = np.asarray(phase_deg, dtype=float)
+        if self.pair_survival_phase_factor is None:
+            return np.ones(ph.shape)
+        e = self.phase_edges_deg
+        return np.interp(ph, 0.5 * (e[:-1] + e[1:]), self.pair_survival_phase_factor)
 
     def false_match_rate_at(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike) -> np.ndarray:
         """Fraction of cross-view matches that are wrong."""
