@@ -10,8 +10,9 @@ silhouettes).  Then, with the statistics of :mod:`vision.calibration` measured o
    uniform per feature for the whole call, so detections are correlated across views and persist
    across epochs, as a textured spot is detected again when the view barely changes.
 2. **Matching across views**: a pair of views (i, j) that both detect f matches it with the measured
-   survival ``S(z/f, angle between the cameras)``, times the measured factor of the pair's Sun phase
-   (the Sun's angle from the pair's mean line of sight; :meth:`SiftCalibration.pair_survival_at`), through a Gaussian copula whose correlation
+   survival ``S(z/f, angle between the cameras)``, times the measured factors of the pair's Sun phase
+   (the Sun's angle from the pair's mean line of sight) and of the feature's surface material
+   (:meth:`SiftCalibration.pair_survival_at`), through a Gaussian copula whose correlation
    between pairs reproduces the measured ratio of three-view to two-view tracks; tracks are the
    connected components of the pair matches with at least ``min_views`` views.  The matches are
    re-decided every epoch, the copula variables an AR(1) process over the epochs whose correlation
@@ -444,6 +445,9 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
     det_all = g.vis[:, :, cand]                                           # (E, n, C)
     fp_c = fp[:, :, cand]
     cand_id = ids[cand]                                                   # their indices in feats
+    mat_c = target.triangle_material[feats.triangle_id[cand_id]] \
+        if cal.pair_survival_material_factor is not None \
+        and len(cal.pair_survival_material_factor) == len(target.materials) else None
     v_size = rng.random(C)
     e_kept = rng.standard_normal((C, n, 2))                               # each feature's error kept per view
     rho_c, rho_t = _calibration_correlations(cal)
@@ -473,7 +477,8 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         with np.errstate(invalid="ignore", divide="ignore"):
             fp_f = np.where(n_det > 0, np.sum(np.where(det, fp_c[k].T, 0.0), axis=1) / n_det, np.nan)  # (C,)
         two = np.nonzero(n_det >= 2)[0]
-        S = cal.pair_survival_at(np.nan_to_num(fp_f[two], nan=1.0)[:, None, None], ang[None], phase_deg[k][None])
+        S = cal.pair_survival_at(np.nan_to_num(fp_f[two], nan=1.0)[:, None, None], ang[None], phase_deg[k][None],
+                                 None if mat_c is None else mat_c[two][:, None, None])
         if feats.sites is not None:                                       # distinct sites match more often
             site = cand_id[two] < len(feats.sites)
             S = np.where(site[:, None, None], feats.sites.pair_survival(

@@ -15,7 +15,8 @@ observation mode does (:func:`vision.render.render`, :func:`vision.rendered.fore
   *Survival* is correct matches over A's keypoints whose surface point the second camera sees
   (in the image, unoccluded); the *false-match rate* is wrong over all matches.  The same counts
   are kept per Sun phase bin of the pair (the Sun's angle from the pair's mean line of sight), with
-  the keypoints the second camera detects again within ``truth_tol_px`` of their surface point;
+  the keypoints the second camera detects again within ``truth_tol_px`` of their surface point, and
+  per surface material of A's keypoint;
 * **keypoint localisation σ per SIFT size**: for correct matches, the residual between B's keypoint
   and the projection of the surface point under A's keypoint has variance σ²(size_A) + σ²(size_B)
   per axis; σ² per size bin is the non-negative least-squares solution over all matches;
@@ -93,7 +94,7 @@ class CalibrationSpec:
 
     targets: tuple[str, ...] = ("fy1", "topex")
     ranges_m: tuple[float, ...] = (40.0, 80.0)
-    attitudes: int = 24
+    attitudes: int = 96
     cross_view_deg: tuple[float, ...] = (10.0, 20.0)
     epoch_change_deg: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0, 30.0, 45.0, 60.0)
     seed: int = 2016
@@ -103,7 +104,7 @@ class CalibrationSpec:
     ratio: float = 0.6
     epipolar_tol_px: float = 1.5
     truth_tol_px: float = 2.0
-    nees_attitudes: int = 24
+    nees_attitudes: int = 96
     nees_angles_deg: tuple[float, ...] = (10.0, 20.0)
 
     def __post_init__(self) -> None:
@@ -119,7 +120,8 @@ class CalibrationSpec:
             raise ValueError(f"epoch_change_deg: need angles in (0, 90], got {self.epoch_change_deg!r}")
 
 
-#: the size ``coobs calibrate`` runs by default (≈ 8 min on one core of the shared 2-core machine)
+#: the size ``coobs calibrate`` runs by default (≈ 8 min for the tables and 4 min for the σ² inflation on
+#: one core of the 2-core machine; 96 attitudes: the survival per Sun phase bin needs them)
 DEFAULT = CalibrationSpec()
 #: ``coobs calibrate --quick``: one attitude per target and range, two epoch changes (a test)
 QUICK = CalibrationSpec(attitudes=1, cross_view_deg=(10.0,), epoch_change_deg=(2.0, 20.0), nees_attitudes=1,
@@ -160,6 +162,12 @@ def _redetected(uv_expected: np.ndarray, uv_keypoints: np.ndarray, tol_px: float
         return 0
     d, _ = cKDTree(uv_keypoints).query(uv_expected, distance_upper_bound=tol_px)
     return int(np.sum(np.isfinite(d)))
+
+
+def _count_materials(counts: np.ndarray, material: np.ndarray) -> None:
+    """Add the keypoints of each material (``material`` -1: off the target, not counted) to ``counts``."""
+    m = material[material >= 0]
+    counts += np.bincount(m, minlength=len(counts))[: len(counts)]
 
 
 def _seen_in(r: RenderResult, q_HT: np.ndarray, X_T: np.ndarray) -> np.ndarray:
@@ -231,6 +239,8 @@ class _Tally:
         self.cv = {k: np.zeros(a) for k in ("matchable", "matches", "correct")}
         # the same counts per Sun phase bin of the pair (the Sun's angle from the pair's mean line of sight)
         self.cv_phase = {k: np.zeros((a, len(_PHASE_EDGES_DEG) - 1)) for k in ("matchable", "redetected", "correct")}
+        # and per material of A's keypoint
+        self.cv_material = {k: np.zeros((a, n_materials)) for k in ("matchable", "correct")}
         self.ep = {k: np.zeros(d) for k in ("tracks_visible", "redetected", "associations", "correct")}
         self.pair_bins: list[np.ndarray] = []   # (k, 2) size bins of A and B
         self.pair_e2: list[np.ndarray] = []     # (k,) mean squared residual per axis, px²
@@ -279,6 +289,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
     np.add.at(t.kp, (vb[on[hit]], sb[on[hit]]), 1.0)
     np.add.at(t.mat_kp, mat[on[hit]], 1.0)
     t.phase_kp[pb] += hit.sum()
+    kp_mat = np.where(hit, mat[np.maximum(on, 0)], -1)       # material under each keypoint (-1: off the target)
     if len(kA) < 2:
         return
     XA = _body_points(rA, target, q, kA.uv_px)
@@ -299,6 +310,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
         pp = _phase_bin(sun, eA + R @ eA)
         t.cv_phase["matchable"][a, pp] += seenB.sum()
         t.cv_phase["redetected"][a, pp] += _redetected(_project(rB, q, XA[seenB])[0], kB.uv_px, spec.truth_tol_px)
+        _count_materials(t.cv_material["matchable"][a], kp_mat[seenB])
         F = fundamental_from_poses(cam.K, T_A, cam.K, T_B)
         m = match_pair(kA, kB, ratio=spec.ratio, F_AB=F, epipolar_tol_px=spec.epipolar_tol_px)
         if len(m) == 0:
@@ -308,6 +320,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
         t.cv["matches"][a] += len(m)
         t.cv["correct"][a] += ok.sum()
         t.cv_phase["correct"][a, pp] += ok.sum()
+        _count_materials(t.cv_material["correct"][a], kp_mat[m[ok, 0]])
         mc = m[ok]
         res = kB.uv_px[mc[:, 1]] - _project(rB, q, XA[mc[:, 0]])[0]
         t.pair_e2.append(np.mean(res**2, axis=1))
@@ -511,6 +524,8 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
             "three_view_tracks": [t.tracks3 for t in per_range],
             **{f"phase_{k}": [t.cv_phase[k].astype(int).tolist() for t in per_range]
                for k in ("matchable", "redetected", "correct")},
+            **{f"material_{k}": [t.cv_material[k].astype(int).tolist() for t in per_range]
+               for k in ("matchable", "correct")},
         },
         "association": {
             "change_deg": list(spec.epoch_change_deg),

@@ -37,6 +37,15 @@ def test_quick_calibration_writes_a_readable_file_with_its_command(tmp_path):
     assert 0.05 < t["pair_residual_rms_px_per_axis"] < 1.0
     cal = SiftCalibration.from_dict(data, "fy1")
     assert np.all(cal.sigma_px > 0) and 0 < cal.pair_survival[0, 0] <= 1
+    # the phase and material counts split the cross-view counts (keypoints off the target have no material)
+    cv = t["cross_view"]
+    for k in ("matchable", "correct"):
+        total = np.asarray(cv[k])
+        np.testing.assert_array_equal(np.sum(cv[f"phase_{k}"], axis=-1), total)
+        assert np.all(np.sum(cv[f"material_{k}"], axis=-1) <= total)
+        assert np.all(np.sum(cv[f"material_{k}"], axis=-1) >= 0.9 * total)
+    assert np.all(np.asarray(cv["phase_correct"]) <= np.asarray(cv["phase_redetected"]))
+    assert cal.pair_survival_phase_factor.shape == (6,) and cal.pair_survival_material_factor.shape == (7,)
     # the triangulation σ² inflation step ran (one attitude, 10°) and says how it was made
     assert data["provenance"]["triangulation_nees"]["spec"]["attitudes"] == 1
     assert sum(map(sum, t["triangulation_nees"]["points"][0])) > 0

@@ -1,4 +1,5 @@
-"""Cross-view match survival against the Sun phase (vision.calibration, vision.geometric_calibrated; issue 16)."""
+"""Cross-view match survival against the Sun phase and the surface material (vision.calibration,
+vision.geometric_calibrated; issue 16)."""
 
 import copy
 import json
@@ -46,15 +47,45 @@ def test_phase_factor_is_correct_matches_over_those_the_table_expects(data):
     assert np.sum(cal.pair_survival_phase_factor[ok] * expected[ok]) == pytest.approx(correct[ok].sum())
 
 
-def test_a_file_without_phase_counts_has_no_phase_dependence(data):
+_COUNTS = ("phase_correct", "phase_matchable", "phase_redetected", "material_correct", "material_matchable")
+
+
+def _without_counts(data: dict) -> dict:
     d = copy.deepcopy(data)
     for t in d["targets"].values():
-        for k in ("phase_correct", "phase_matchable", "phase_redetected"):
+        for k in _COUNTS:
             t["cross_view"].pop(k, None)
-    cal = SiftCalibration.from_dict(d, "fy1")
-    assert cal.pair_survival_phase_factor is None
+    return d
+
+
+def test_a_file_without_phase_or_material_counts_has_no_such_dependence(data):
+    cal = SiftCalibration.from_dict(_without_counts(data), "fy1")
+    assert cal.pair_survival_phase_factor is None and cal.pair_survival_material_factor is None
     fp, ang, ph = np.array([0.02, 0.05]), np.array([10.0, 20.0]), np.array([15.0, 120.0])
-    np.testing.assert_array_equal(cal.pair_survival_at(fp, ang, ph), cal.pair_survival_at(fp, ang))
+    np.testing.assert_array_equal(cal.pair_survival_at(fp, ang, ph, np.array([0, 2])), cal.pair_survival_at(fp, ang))
+
+
+def test_material_factor_is_correct_matches_over_those_the_table_expects(data):
+    """Per material: Σ correct / Σ matchable · S(range, angle); 1 for a material expected to have fewer than 20."""
+    d = _without_counts(data)
+    cv = d["targets"]["fy1"]["cross_view"]
+    S = np.asarray(cv["survival"], dtype=float)
+    R, A = S.shape
+    P = len(d["targets"]["fy1"]["materials"])
+    matchable = np.zeros((R, A, P))
+    correct = np.zeros((R, A, P))
+    matchable[..., 0], correct[..., 0] = 1000.0, 50.0
+    matchable[..., 1], correct[..., 1] = 2000.0, 900.0
+    matchable[..., 2], correct[..., 2] = 10.0, 10.0          # too few: factor 1
+    cv["material_matchable"], cv["material_correct"] = matchable.tolist(), correct.tolist()
+    cal = SiftCalibration.from_dict(d, "fy1")
+    expected = np.sum(matchable * S[:, :, None], axis=(0, 1))
+    want = np.ones(P)
+    want[:2] = correct.sum(axis=(0, 1))[:2] / expected[:2]
+    np.testing.assert_allclose(cal.pair_survival_material_factor, want, rtol=1e-12)
+    fp, ang = 0.03, 20.0
+    assert cal.pair_survival_at(fp, ang, material=1) == pytest.approx(
+        min(1.0, float(cal.pair_survival_at(fp, ang)) * want[1]), rel=1e-12)
 
 
 def test_phase_factor_is_linear_between_bin_centres_and_held_beyond(data):
@@ -88,7 +119,8 @@ def _tracks(fy1, data, factor, seed=4) -> int:
 
     d = _with_phase_counts(data, np.full(6, 1000.0), np.full(6, 1000.0))
     cal = vc.SiftCalibration.from_dict(d, "fy1")
-    cal = vc.SiftCalibration(**{**cal.__dict__, "pair_survival_phase_factor": np.full(6, float(factor))})
+    cal = vc.SiftCalibration(**{**cal.__dict__, "pair_survival_phase_factor": np.full(6, float(factor)),
+                                "pair_survival_material_factor": np.ones(len(fy1.materials))})
     T = two_camera_poses(40.0, 10.0)
     feats = surface_features(fy1, n_features=calibrated_feature_count(CAM, fy1, T, cal), surface="outer")
     q = np.array([[0.3, -0.2, 0.5, 0.78]]) / np.linalg.norm([0.3, -0.2, 0.5, 0.78])
@@ -98,12 +130,9 @@ def _tracks(fy1, data, factor, seed=4) -> int:
 
 
 def test_the_geometric_mode_matches_pairs_at_the_phase_scaled_survival(fy1, data):
-    """A factor of 1 gives the tracks of a file without phase counts, bit for bit; 0 gives none; 2
-    gives more (the survival is scaled, not the detections)."""
-    d = copy.deepcopy(data)
-    for k in ("phase_correct", "phase_matchable", "phase_redetected"):
-        d["targets"]["fy1"]["cross_view"].pop(k, None)
-    cal0 = SiftCalibration.from_dict(d, "fy1")
+    """Factors of 1 (phase and material) give the tracks of a file without the counts, bit for bit; a
+    phase factor of 0 gives none; 2 gives more (the survival is scaled, not the detections)."""
+    cal0 = SiftCalibration.from_dict(_without_counts(data), "fy1")
     T = two_camera_poses(40.0, 10.0)
     feats = surface_features(fy1, n_features=calibrated_feature_count(CAM, fy1, T, cal0), surface="outer")
     q = np.array([[0.3, -0.2, 0.5, 0.78]]) / np.linalg.norm([0.3, -0.2, 0.5, 0.78])

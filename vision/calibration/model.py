@@ -88,6 +88,20 @@ def _phase_factor(t: dict) -> np.ndarray | None:
     return _fill_nearest(list(g))
 
 
+def _material_survival_factor(t: dict) -> np.ndarray | None:
+    """Cross-view survival of each material's keypoints over the survival their pairs' range and angle
+    give, pooled over ranges and angles (None in files without the material counts; 1 for a material
+    expected to have fewer than ``_MIN_EXPECTED_PER_PHASE`` correct matches)."""
+    cv = t["cross_view"]
+    if "material_correct" not in cv:
+        return None
+    correct = np.asarray(cv["material_correct"], dtype=float)       # (R, A, P)
+    matchable = np.asarray(cv["material_matchable"], dtype=float)
+    expected = np.sum(matchable * _table(cv["survival"])[:, :, None], axis=(0, 1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(expected >= _MIN_EXPECTED_PER_PHASE, correct.sum(axis=(0, 1)) / expected, 1.0)
+
+
 def _sigma_by_range(t: dict) -> np.ndarray:
     pooled = np.maximum(_fill_nearest(t["sigma_px"]), _MIN_SIGMA_PX)
     counts = np.asarray(t.get("sigma_pairs_per_bin_by_range", [[0] * len(pooled)] * len(t["ranges_m"])))
@@ -195,6 +209,8 @@ class SiftCalibration:
         pair's mean line of sight) over the range-and-angle table's (None in files without it: no
         phase dependence).
     phase_edges_deg : ndarray (P + 1,)
+    pair_survival_material_factor : ndarray (M,) or None
+        The same per surface material of the keypoint (None in files without it).
     track_persistence : ndarray (R,)
         Fraction of the tracks of two cameras at the first cross-view angle that are tracks of the
         same cameras again after the first epoch change (NaN where not measured).
@@ -240,6 +256,7 @@ class SiftCalibration:
     epoch_increment_sigma2_inflation: np.ndarray | None = None
     pair_survival_phase_factor: np.ndarray | None = None
     phase_edges_deg: np.ndarray = field(default_factory=lambda: np.linspace(0.0, 180.0, 7))
+    pair_survival_material_factor: np.ndarray | None = None
 
     @classmethod
     def from_dict(cls, data: dict, target: str) -> SiftCalibration:
@@ -280,6 +297,7 @@ class SiftCalibration:
                                   / max(1.0, float(sum(t["cross_view"]["two_view_tracks"])))),
             provenance=dict(data.get("provenance", {})),
             pair_survival_phase_factor=_phase_factor(t),
+            pair_survival_material_factor=_material_survival_factor(t),
             phase_edges_deg=np.asarray(data.get("phase_edges_deg", np.linspace(0.0, 180.0, 7)), dtype=float),
             **_inflation(t),
         )
@@ -471,14 +489,19 @@ class SiftCalibration:
         return np.clip((1.0 - w) * np.choose(i, rows) + w * np.choose(j, rows), 0.0, 1.0)
 
     def pair_survival_at(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike,
-                         phase_deg: ArrayLike | None = None) -> np.ndarray:
+                         phase_deg: ArrayLike | None = None, material: ArrayLike | None = None) -> np.ndarray:
         """Probability that a keypoint seen by a second camera ``angle_deg`` away is correctly matched;
         with ``phase_deg`` (the Sun's angle from the pair's mean line of sight) times the survival
-        factor of that phase (:meth:`survival_phase_factor_at`)."""
+        factor of that phase (:meth:`survival_phase_factor_at`), with ``material`` (the index of the
+        keypoint's surface material) times that material's (``pair_survival_material_factor``)."""
         S = self._rate(self.cross_view_deg, self.pair_survival, footprint_m_per_px, angle_deg)
-        if phase_deg is None:
+        if phase_deg is None and (material is None or self.pair_survival_material_factor is None):
             return S
-        return np.clip(S * self.survival_phase_factor_at(phase_deg), 0.0, 1.0)
+        if phase_deg is not None:
+            S = S * self.survival_phase_factor_at(phase_deg)
+        if material is not None and self.pair_survival_material_factor is not None:
+            S = S * self.pair_survival_material_factor[np.asarray(material, dtype=np.int64)]
+        return np.clip(S, 0.0, 1.0)
 
     def survival_phase_factor_at(self, phase_deg: ArrayLike) -> np.ndarray:
         """The cross-view survival factor of a Sun phase, degrees: linear between the phase bins' centres,
