@@ -14,10 +14,10 @@ so ``χ² = e² / var(e)`` is χ²(1) when the σ are right.  The factor is the 
 below the χ²(1) gate of ``gate_probability`` (the pairs a matcher's outliers put far beyond it
 would otherwise set it), with ``prior_pairs`` pseudo-pairs at 1 so that an epoch with few tracks
 stays near its σ: ``(Σ χ² + prior_pairs) / (m + prior_pairs)``.  Over the epochs of
-``coobs calibrate`` (rendered FY-1 and TOPEX, 24 attitudes per range, random Sun), its logarithm
-correlates with the log of the epoch's mean NEES at 0.83 and 0.77, and dividing by it shrinks the
-spread of the epochs' NEES from a factor 1.8 to 1.4 (FY-1) and 1.5 to 1.3 (TOPEX) (log standard
-deviations 0.59 → 0.33 and 0.41 → 0.27; ``epoch_log_nees_spread`` in the calibration file).  The rest of the scale (the part
+``coobs calibrate`` (rendered FY-1 and TOPEX, 96 attitudes per range, random Sun), its logarithm
+correlates with the log of the epoch's mean NEES at 0.81 and 0.72, and dividing by it shrinks the
+spread of the epochs' NEES from a factor 1.9 to 1.4 (FY-1) and 1.6 to 1.4 (TOPEX) (log standard
+deviations 0.62 → 0.37 and 0.44 → 0.30; ``epoch_log_nees_spread`` in the calibration file).  The rest of the scale (the part
 of a keypoint's error common to all views, which no residual shows) is the calibration's
 ``epoch_sigma2_inflation`` (:meth:`vision.calibration.SiftCalibration.track_sigma_px`).
 """
