@@ -72,34 +72,32 @@ def _conditional(num: list, den: list) -> list:
     return [[None if d <= 0 else min(1.0, n / d) for n, d in zip(rn, rd, strict=True)] for rn, rd in zip(num, den, strict=True)]
 
 
-def _phase_factor(t: dict) -> np.ndarray | None:
-    """Cross-view survival per Sun phase bin over the survival its pairs' range and angle give, pooled
-    over ranges and angles (None in files without the phase counts): correct matches of a phase bin
-    over those its matchable keypoints would have at the table's survival.  Its mean over the
-    calibration's pairs is 1 by construction."""
+def _survival_factor(t: dict, by: str) -> np.ndarray | None:
+    """Cross-view survival per class ``by`` (``"phase"``: Sun phase bin, ``"material"``: the keypoint's
+    surface material) over the survival its pairs' range and angle give, pooled over ranges and
+    angles: correct matches of a class over those its matchable keypoints would have at the table's
+    survival (mean 1 over the calibration's pairs by construction).  None in files without the
+    counts; NaN for a class expected to have fewer than ``_MIN_EXPECTED_PER_PHASE`` correct matches."""
     cv = t["cross_view"]
-    if "phase_correct" not in cv:
+    if f"{by}_correct" not in cv:
         return None
-    correct = np.asarray(cv["phase_correct"], dtype=float)          # (R, A, P)
-    matchable = np.asarray(cv["phase_matchable"], dtype=float)
+    correct = np.asarray(cv[f"{by}_correct"], dtype=float)          # (R, A, classes)
+    matchable = np.asarray(cv[f"{by}_matchable"], dtype=float)
     expected = np.sum(matchable * _table(cv["survival"])[:, :, None], axis=(0, 1))
     with np.errstate(invalid="ignore", divide="ignore"):
-        g = np.where(expected >= _MIN_EXPECTED_PER_PHASE, correct.sum(axis=(0, 1)) / expected, np.nan)
-    return _fill_nearest(list(g))
+        return np.where(expected >= _MIN_EXPECTED_PER_PHASE, correct.sum(axis=(0, 1)) / expected, np.nan)
+
+
+def _phase_factor(t: dict) -> np.ndarray | None:
+    """The survival factor per Sun phase bin; a bin with too few matches takes the nearest bin's."""
+    g = _survival_factor(t, "phase")
+    return None if g is None else _fill_nearest(list(g))
 
 
 def _material_survival_factor(t: dict) -> np.ndarray | None:
-    """Cross-view survival of each material's keypoints over the survival their pairs' range and angle
-    give, pooled over ranges and angles (None in files without the material counts; 1 for a material
-    expected to have fewer than ``_MIN_EXPECTED_PER_PHASE`` correct matches)."""
-    cv = t["cross_view"]
-    if "material_correct" not in cv:
-        return None
-    correct = np.asarray(cv["material_correct"], dtype=float)       # (R, A, P)
-    matchable = np.asarray(cv["material_matchable"], dtype=float)
-    expected = np.sum(matchable * _table(cv["survival"])[:, :, None], axis=(0, 1))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(expected >= _MIN_EXPECTED_PER_PHASE, correct.sum(axis=(0, 1)) / expected, 1.0)
+    """The survival factor per surface material; 1 for a material with too few matches."""
+    g = _survival_factor(t, "material")
+    return None if g is None else np.where(np.isfinite(g), g, 1.0)
 
 
 def _sigma_by_range(t: dict) -> np.ndarray:
