@@ -67,7 +67,8 @@ def _nees_only(path: Path, base: CalibrationSpec, attitudes: int | None, out: Pa
 def calibrate(
     out: Path = typer.Option(None, "--out", help="JSON file to write (default: the shipped "
                              "vision/calibration/rendered_sift.json)."),
-    quick: bool = typer.Option(False, "--quick", help="One attitude per target and range (a test, ~10 s)."),
+    quick: bool = typer.Option(False, "--quick", help="One attitude per target and range and fewer angles (a test, ~10 s; too few samples "
+                              "leave a table empty and are refused: add e.g. --attitudes 3)."),
     attitudes: int = typer.Option(None, "--attitudes", help="Random attitudes per target and range "
                                   f"(default {DEFAULT.attitudes})."),
     targets: str = typer.Option(",".join(DEFAULT.targets), "--targets",
@@ -115,6 +116,9 @@ def calibrate(
         from experiments.studies.rendered_calibration import calibrate as run
 
         data = run(spec, command=command.strip(), progress=update)
+    except ValueError as exc:       # a table left without any measured value: too few samples
+        raise fail(f"--attitudes: {spec.attitudes} per target and range left a table empty ({exc}); "
+                   "use more attitudes") from None
     finally:
         stop()
     path.parent.mkdir(parents=True, exist_ok=True)

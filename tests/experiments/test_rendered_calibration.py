@@ -57,6 +57,14 @@ def test_calibrate_refuses_an_unknown_target_in_one_line():
     assert res.exit_code == 2 and "--targets" in res.output and len(res.output.strip().splitlines()) == 1
 
 
+def test_calibrate_with_too_few_samples_fails_in_one_line_and_writes_nothing(tmp_path):
+    """At 2 km the target is a few pixels across: no match, so no table can be filled."""
+    out = tmp_path / "cal.json"
+    res = runner.invoke(app, ["calibrate", "--quick", "--targets", "fy1", "--ranges-m", "2000", "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    assert "--attitudes" in res.output and "Traceback" not in res.output and not out.exists()
+
+
 def test_nees_only_adds_the_inflation_and_keeps_the_other_tables(tmp_path):
     from vision.calibration import calibration_path
 

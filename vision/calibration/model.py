@@ -272,7 +272,9 @@ class SiftCalibration:
         factor = rho_r[:, None, None] * np.nan_to_num(g_v)[:, :, None] * np.nan_to_num(h_s)[:, None, :]
         dens = np.where(area >= _MIN_CELL_AREA_M2, cell, factor)
         q = [r for r in t["track_size_px_quantiles_by_range"]]
-        qfill = next(r for r in q if r is not None)
+        qfill = next((r for r in q if r is not None), None)
+        if qfill is None:
+            raise ValueError("calibration: no tracked keypoint sizes at any range")
         return cls(
             target=target,
             footprint_m_per_px=np.asarray(t["footprint_m_per_px"], dtype=float),
