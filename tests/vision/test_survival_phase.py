@@ -142,3 +142,21 @@ def test_the_geometric_mode_matches_pairs_at_the_phase_scaled_survival(fy1, data
     assert one == int(np.sum(base.feature_id >= 0)) > 10
     assert _tracks(fy1, data, 0.0) == 0
     assert _tracks(fy1, data, 2.0) > 1.3 * one
+
+
+def test_the_shipped_calibration_measures_survival_falling_with_the_sun_phase(data):
+    """The shipped file (96 attitudes per target and range) has the counts; for both targets the
+    survival factor of the 30-60 deg phase bin is above that of the 120-150 deg bin (the Sun behind
+    the target leaves less texture to match), and the factors of the bins with enough matches give back
+    their correct matches."""
+    for name in ("fy1", "topex"):
+        cal = SiftCalibration.from_dict(data, name)
+        g = cal.pair_survival_phase_factor
+        assert g is not None and g[1] > 1.5 * g[4]
+        cv = data["targets"][name]["cross_view"]
+        matchable = np.asarray(cv["phase_matchable"], dtype=float)
+        expected = np.sum(matchable * cal.pair_survival[:, :, None], axis=(0, 1))
+        own = expected >= 20                    # the bins with a factor of their own
+        correct = np.sum(cv["phase_correct"], axis=(0, 1))
+        assert np.sum(g[own] * expected[own]) == pytest.approx(np.sum(correct[own]), rel=1e-9)
+        assert cal.pair_survival_material_factor.shape == (len(data["targets"][name]["materials"]),)
