@@ -259,7 +259,11 @@ def markdown_table(rendered: dict, fixed: dict, calibrated: dict) -> str:
     lines = [head, "|---" * (len(keys) + 2) + "|"]
 
     def cell_of(res, c):
-        return next(x for x in res["cells"] if (x["n_views"], x["distance_m"], x["axis_angle_deg"]) == c)
+        hit = next((x for x in res["cells"] if (x["n_views"], x["distance_m"], x["axis_angle_deg"]) == c), None)
+        if hit is None:
+            raise ValueError(f"cell {c} (views, distance_m, axis_angle_deg) is in the rendered results but not in "
+                             "a geometric one: run the same grid")
+        return hit
 
     def median(cell, k, n):
         v = np.asarray(cell["per_trial"][k][:n], dtype=float)
