@@ -233,8 +233,6 @@ class _Tally:
         self.area = np.zeros((nv, ns))
         self.mat_kp = np.zeros(n_materials)
         self.mat_area = np.zeros(n_materials)
-        self.mat_kp_unlit = np.zeros(n_materials)                 # the same on unlit surface (Sun bin 0)
-        self.mat_area_unlit = np.zeros(n_materials)
         self.phase_kp = np.zeros(len(_PHASE_EDGES_DEG) - 1)
         self.phase_area = np.zeros(len(_PHASE_EDGES_DEG) - 1)
         a, d = len(spec.cross_view_deg), len(spec.epoch_change_deg)
@@ -281,7 +279,6 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
     v, u, vb, sb, area, mat = _surface_geometry(rA, target, q, sun)
     np.add.at(t.area, (vb, sb), area)
     np.add.at(t.mat_area, mat, area)
-    np.add.at(t.mat_area_unlit, mat[sb == 0], area[sb == 0])
     pb = _phase_bin(sun, eA)
     t.phase_area[pb] += area.sum()
     pix = np.full(rA.mask.shape, -1, dtype=np.int64)
@@ -291,8 +288,6 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
     hit = on >= 0
     np.add.at(t.kp, (vb[on[hit]], sb[on[hit]]), 1.0)
     np.add.at(t.mat_kp, mat[on[hit]], 1.0)
-    dark = on[hit][sb[on[hit]] == 0]
-    np.add.at(t.mat_kp_unlit, mat[dark], 1.0)
     t.phase_kp[pb] += hit.sum()
     kp_mat = np.where(hit, mat[np.maximum(on, 0)], -1)       # material under each keypoint (-1: off the target)
     if len(kA) < 2:
@@ -515,8 +510,6 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
         "materials": [m.name for m in target.materials],
         "material_keypoints": [t.mat_kp.astype(int).tolist() for t in per_range],
         "material_area_m2": [t.mat_area.round(4).tolist() for t in per_range],
-        "material_keypoints_unlit": [t.mat_kp_unlit.astype(int).tolist() for t in per_range],
-        "material_area_m2_unlit": [t.mat_area_unlit.round(4).tolist() for t in per_range],
         "phase_keypoints": [t.phase_kp.astype(int).tolist() for t in per_range],
         "phase_area_m2": [t.phase_area.round(3).tolist() for t in per_range],
         "cross_view": {

@@ -85,8 +85,7 @@ def _density_formula(cal, fp, cos_view, sun_bin, material=None):
     lo = np.maximum(cal.density_per_m2[i, v, sun_bin], 1e-9)
     hi = np.maximum(cal.density_per_m2[i + 1, v, sun_bin], 1e-9)
     if material is not None:
-        f = cal.material_factor_by_sun()
-        lo, hi = lo * f[i, sun_bin, material], hi * f[i + 1, sun_bin, material]
+        lo, hi = lo * cal.material_factor[i, material], hi * cal.material_factor[i + 1, material]
     return np.exp((1.0 - w) * np.log(lo) + w * np.log(hi))
 
 
@@ -134,42 +133,3 @@ def test_rates_on_broadcast_arrays_equal_their_pointwise_values(name):
         one = np.array([[[rate(f, a) for a in row] for row in ang] for f in fp])
         np.testing.assert_array_equal(many, one)
         np.testing.assert_array_equal(rate(fp, 3.0), [rate(f, 3.0) for f in fp])
-
-
-def test_unlit_surface_takes_its_own_material_factor(tmp_path):
-    """With the unlit counts in the file, Sun bin 0 takes each material's density measured on unlit
-    surface and the lit bins the one measured on lit surface (each over its mean, area-weighted 1);
-    without them every bin takes the pooled factor, as before."""
-    import copy
-    import json
-
-    from vision.calibration import SiftCalibration, calibration_path
-
-    data = json.loads(calibration_path().read_text(encoding="utf-8"))
-    d = copy.deepcopy(data)
-    t = d["targets"]["fy1"]
-    for k in ("material_keypoints_unlit", "material_area_m2_unlit"):
-        t.pop(k, None)
-    pooled = SiftCalibration.from_dict(d, "fy1")
-    assert pooled.material_factor_unlit is None
-    assert np.all(pooled.material_factor_by_sun() == pooled.material_factor[:, None, :])
-    kp = np.asarray(t["material_keypoints"], dtype=float)
-    area = np.asarray(t["material_area_m2"], dtype=float)
-    kp_u, area_u = np.round(0.1 * kp), 0.5 * area
-    kp_u[:, 0] = 0.0                                        # material 0 shows nothing in shadow
-    t["material_keypoints_unlit"], t["material_area_m2_unlit"] = kp_u.tolist(), area_u.tolist()
-    cal = SiftCalibration.from_dict(d, "fy1")
-
-    def relative(k, a):
-        f = np.where(a >= 2.0, (k / a) / (k.sum(axis=1, keepdims=True) / a.sum(axis=1, keepdims=True)), 1.0)
-        return f * a.sum(axis=1, keepdims=True) / np.sum(f * a, axis=1, keepdims=True)
-
-    np.testing.assert_allclose(cal.material_factor_unlit, relative(kp_u, area_u), rtol=1e-12)
-    np.testing.assert_allclose(cal.material_factor, relative(kp - kp_u, area - area_u), rtol=1e-12)
-    fp, cos_v = np.full(2, cal.footprint_m_per_px[0]), np.ones(2)
-    dark = cal.density(fp, cos_v, np.zeros(2, dtype=int), np.array([0, 2]))
-    base = cal.density(fp, cos_v, np.zeros(2, dtype=int))
-    np.testing.assert_allclose(dark[1], base[1] * cal.material_factor_unlit[0, 2], rtol=1e-12)
-    assert dark[0] < 1e-20                                  # a vanishing density, not log(0)
-    lit = cal.density(fp, cos_v, np.full(2, 3), np.array([0, 2]))
-    np.testing.assert_allclose(lit, cal.density(fp, cos_v, np.full(2, 3)) * cal.material_factor[0, [0, 2]], rtol=1e-12)

@@ -111,25 +111,11 @@ def _sigma_by_range(t: dict) -> np.ndarray:
     return np.stack(rows)
 
 
-def _material_factor(t: dict, part: str = "all") -> np.ndarray | None:
-    """Density of each material over the mean, per range: ``part`` "all" (every surface), "lit" or
-    "unlit" (Sun bin 0; None for both where the file has no unlit counts)."""
+def _material_factor(t: dict) -> np.ndarray:
     if "material_keypoints" not in t:
-        return np.ones((len(t["ranges_m"]), 1)) if part == "all" else None
+        return np.ones((len(t["ranges_m"]), 1))
     kp = np.asarray(t["material_keypoints"], dtype=float)
     area = np.asarray(t["material_area_m2"], dtype=float)
-    if part != "all":
-        if "material_keypoints_unlit" not in t:
-            return None
-        kp_u = np.asarray(t["material_keypoints_unlit"], dtype=float)
-        area_u = np.asarray(t["material_area_m2_unlit"], dtype=float)
-        kp, area = (kp_u, area_u) if part == "unlit" else (kp - kp_u, area - area_u)
-    return _relative_density(kp, area)
-
-
-def _relative_density(kp: np.ndarray, area: np.ndarray) -> np.ndarray:
-    """Each column's keypoints per m² over the row's (``(R, P)``), 1 where less than 2 m² were seen,
-    renormalised to an area-weighted mean of 1 per row."""
     with np.errstate(invalid="ignore", divide="ignore"):
         f = (kp / area) / (kp.sum(axis=1, keepdims=True) / area.sum(axis=1, keepdims=True))
     f = np.where(area >= _MIN_CELL_AREA_M2, f, 1.0)
@@ -215,10 +201,7 @@ class SiftCalibration:
         Tracks of three cameras at the first cross-view angle over matches of two of them.
     material_factor : ndarray (R, P)
         Density of each of the target's P materials over the target's mean (area-weighted mean 1;
-        1 for materials with less than 2 m² seen); on lit surface where the file has the unlit counts.
-    material_factor_unlit : ndarray (R, P) or None
-        The same on unlit surface (Sun bin 0), where the file has its counts: a material's keypoints
-        in shadow (edges, silhouettes) do not follow its lit texture.
+        1 for materials with less than 2 m² seen).
     pair_survival_phase_factor : ndarray (P,) or None
         Cross-view survival in each Sun phase bin of ``phase_edges_deg`` (the Sun's angle from the
         pair's mean line of sight) over the range-and-angle table's (None in files without it: no
@@ -272,7 +255,6 @@ class SiftCalibration:
     pair_survival_phase_factor: np.ndarray | None = None
     phase_edges_deg: np.ndarray = field(default_factory=lambda: np.linspace(0.0, 180.0, 7))
     pair_survival_material_factor: np.ndarray | None = None
-    material_factor_unlit: np.ndarray | None = None
 
     @classmethod
     def from_dict(cls, data: dict, target: str) -> SiftCalibration:
@@ -310,8 +292,7 @@ class SiftCalibration:
             measured_cell=area >= _MIN_CELL_AREA_M2,
             track_persistence=np.array([np.nan if v is None else float(v) for v in
                                         t["cross_view"].get("persistence", [None] * len(t["ranges_m"]))]),
-            material_factor=_material_factor(t, "lit") if "material_keypoints_unlit" in t else _material_factor(t),
-            material_factor_unlit=_material_factor(t, "unlit"),
+            material_factor=_material_factor(t),
             three_over_two_ratio=(float(sum(t["cross_view"]["three_view_tracks"]))
                                   / max(1.0, float(sum(t["cross_view"]["two_view_tracks"])))),
             provenance=dict(data.get("provenance", {})),
@@ -469,21 +450,10 @@ class SiftCalibration:
         """log of the density table ``(R, V, S)`` (floored at 1e-9 per m²), every material together."""
         return np.log(np.maximum(self.density_per_m2, 1e-9))
 
-    def material_factor_by_sun(self) -> np.ndarray:
-        """Each material's density factor per range and Sun bin, ``(R, S, P)``: the unlit factor in Sun
-        bin 0 where the file has it, the (lit) ``material_factor`` elsewhere."""
-        S = self.density_per_m2.shape[2]
-        f = np.repeat(self.material_factor[:, None, :], S, axis=1)
-        if self.material_factor_unlit is not None and self.material_factor_unlit.shape == self.material_factor.shape:
-            f[:, 0, :] = self.material_factor_unlit
-        return f
-
     @functools.cached_property
     def _log_density(self) -> np.ndarray:
-        """log of the density table times each material's factor in its Sun bin, ``(R, V, S, P)``."""
-        # a material never seen in a bin (factor 0) gets a vanishing density, not log(0)
-        return np.log(np.maximum(np.maximum(self.density_per_m2, 1e-9)[..., None]
-                                 * self.material_factor_by_sun()[:, None, :, :], 1e-30))
+        """log of the density table times each material's factor, ``(R, V, S, P)``."""
+        return np.log(np.maximum(self.density_per_m2, 1e-9)[..., None] * self.material_factor[:, None, None, :])
 
     def sun_bin(self, cos_sun: ArrayLike, lit: ArrayLike) -> np.ndarray:
         """Sun bin of surfaces with this Sun-incidence cosine (lit side) and lit flag."""
@@ -495,9 +465,8 @@ class SiftCalibration:
         2 m² of surface seen; the power law of :meth:`density` between and beyond footprints)."""
         fp = float(footprint_m_per_px)
         i, j, w = self._range_weights(np.array(fp))
-        f = self.material_factor_by_sun()
-        lo = np.max(np.where(self.measured_cell[i], self.density_per_m2[i], 0.0)) * np.max(f[i])
-        hi = np.max(np.where(self.measured_cell[j], self.density_per_m2[j], 0.0)) * np.max(f[j])
+        lo = np.max(np.where(self.measured_cell[i], self.density_per_m2[i], 0.0)) * np.max(self.material_factor[i])
+        hi = np.max(np.where(self.measured_cell[j], self.density_per_m2[j], 0.0)) * np.max(self.material_factor[j])
         return float(np.exp((1.0 - w) * np.log(max(lo, 1e-9)) + w * np.log(max(hi, 1e-9))))
 
     def size_px(self, footprint_m_per_px: ArrayLike, u: ArrayLike) -> np.ndarray:
