@@ -15,7 +15,7 @@ from rich.table import Table
 
 from coobs.cli._console import console, fail, progress_bar
 from experiments.studies.rendered_calibration import DEFAULT, QUICK, CalibrationSpec
-from vision.calibration import calibration_path
+from vision.calibration import CalibrationTableEmpty, calibration_path
 
 __all__ = ["calibrate"]
 
@@ -116,7 +116,7 @@ def calibrate(
         from experiments.studies.rendered_calibration import calibrate as run
 
         data = run(spec, command=command.strip(), progress=update)
-    except ValueError as exc:       # a table left without any measured value: too few samples
+    except CalibrationTableEmpty as exc:       # a table left without any measured value: too few samples
         raise fail(f"--attitudes: {spec.attitudes} per target and range left a table empty ({exc}); "
                    "use more attitudes") from None
     finally:

@@ -46,7 +46,7 @@ import numpy as np
 
 from attitude.quaternion import matrix_from_quat, quat_from_rotvec, quat_multiply, quat_normalize
 from experiments.sweep import child_seeds
-from vision.calibration import COS_VIEW_EDGES, SIZE_EDGES_PX, SUN_BIN_EDGES
+from vision.calibration import COS_VIEW_EDGES, PHASE_EDGES_DEG, SIZE_EDGES_PX, SUN_BIN_EDGES
 from vision.camera import PinholeCamera, look_at
 from vision.features import Keypoints, detect, fundamental_from_poses, match_pair, match_views
 from vision.render import RenderResult, cast_body_points, render
@@ -59,7 +59,6 @@ __all__ = ["CalibrationSpec", "calibrate", "load_calibration_target", "QUICK", "
 _QUANTILES = np.linspace(0.0, 1.0, 21)
 #: size bins with fewer keypoints in correct matches get no σ (the model takes the nearest bin's)
 _MIN_PAIRS_PER_BIN = 20
-_PHASE_EDGES_DEG = np.array([0.0, 30.0, 60.0, 90.0, 120.0, 150.0, 180.0])
 
 
 @dataclass(frozen=True)
@@ -151,7 +150,7 @@ def _phase_bin(sun: np.ndarray, line_of_sight: np.ndarray) -> int:
     """Phase bin of the Sun direction seen along ``line_of_sight`` (target to camera(s), any length)."""
     c = float(sun @ line_of_sight) / float(np.linalg.norm(line_of_sight))
     phase = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
-    return min(int(np.searchsorted(_PHASE_EDGES_DEG, phase, side="right")) - 1, len(_PHASE_EDGES_DEG) - 2)
+    return min(int(np.searchsorted(PHASE_EDGES_DEG, phase, side="right")) - 1, len(PHASE_EDGES_DEG) - 2)
 
 
 def _redetected(uv_expected: np.ndarray, uv_keypoints: np.ndarray, tol_px: float) -> int:
@@ -233,12 +232,12 @@ class _Tally:
         self.area = np.zeros((nv, ns))
         self.mat_kp = np.zeros(n_materials)
         self.mat_area = np.zeros(n_materials)
-        self.phase_kp = np.zeros(len(_PHASE_EDGES_DEG) - 1)
-        self.phase_area = np.zeros(len(_PHASE_EDGES_DEG) - 1)
+        self.phase_kp = np.zeros(len(PHASE_EDGES_DEG) - 1)
+        self.phase_area = np.zeros(len(PHASE_EDGES_DEG) - 1)
         a, d = len(spec.cross_view_deg), len(spec.epoch_change_deg)
         self.cv = {k: np.zeros(a) for k in ("matchable", "matches", "correct")}
         # the same counts per Sun phase bin of the pair (the Sun's angle from the pair's mean line of sight)
-        self.cv_phase = {k: np.zeros((a, len(_PHASE_EDGES_DEG) - 1)) for k in ("matchable", "redetected", "correct")}
+        self.cv_phase = {k: np.zeros((a, len(PHASE_EDGES_DEG) - 1)) for k in ("matchable", "redetected", "correct")}
         # and per material of A's keypoint
         self.cv_material = {k: np.zeros((a, n_materials)) for k in ("matchable", "correct")}
         self.ep = {k: np.zeros(d) for k in ("tracks_visible", "redetected", "associations", "correct")}
@@ -448,7 +447,7 @@ def calibrate(spec: CalibrationSpec = DEFAULT, *, command: str = "",
         "cos_view_edges": list(COS_VIEW_EDGES),
         "sun_bin_edges": list(SUN_BIN_EDGES),
         "sun_bins": "bin 0: surface not lit (shadowed or facing away); bins 1..: cosine of the Sun incidence",
-        "phase_edges_deg": list(_PHASE_EDGES_DEG),
+        "phase_edges_deg": list(PHASE_EDGES_DEG),
         "provenance": {
             "command": command,
             "coobs_version": _coobs_version(),

@@ -11,9 +11,11 @@ target.
 
 from vision.calibration.model import (
     COS_VIEW_EDGES,
+    PHASE_EDGES_DEG,
     SIZE_EDGES_PX,
     SUN_BIN_EDGES,
     TRACK_CLASSES,
+    CalibrationTableEmpty,
     SiftCalibration,
     calibration_path,
     load_calibration,
@@ -22,9 +24,11 @@ from vision.calibration.model import (
 
 __all__ = [
     "COS_VIEW_EDGES",
+    "PHASE_EDGES_DEG",
     "SIZE_EDGES_PX",
     "SUN_BIN_EDGES",
     "TRACK_CLASSES",
+    "CalibrationTableEmpty",
     "SiftCalibration",
     "calibration_path",
     "load_calibration",

@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["COS_VIEW_EDGES", "SIZE_EDGES_PX", "SUN_BIN_EDGES", "TRACK_CLASSES", "SiftCalibration",
-           "calibration_path", "load_calibration", "track_class"]
+__all__ = ["COS_VIEW_EDGES", "PHASE_EDGES_DEG", "SIZE_EDGES_PX", "SUN_BIN_EDGES", "TRACK_CLASSES", "CalibrationTableEmpty",
+           "SiftCalibration", "calibration_path", "load_calibration", "track_class"]
 
 #: SIFT keypoint diameter bins, px (half octaves from 2√2 px)
 SIZE_EDGES_PX = np.array([0.0, 2.83, 4.0, 5.66, 8.0, 11.3, 16.0, 22.6, 32.0, np.inf])
@@ -33,6 +33,8 @@ SIZE_EDGES_PX = np.array([0.0, 2.83, 4.0, 5.66, 8.0, 11.3, 16.0, 22.6, 32.0, np.
 COS_VIEW_EDGES = np.array([0.0, 0.26, 0.5, 0.71, 0.87, 1.0001])
 #: Sun bins: bin 0 = not lit; bins 1.. = cosine of the Sun incidence on the lit side
 SUN_BIN_EDGES = np.array([-1.0, 0.0, 0.26, 0.5, 0.71, 0.87, 1.0001])
+#: Sun phase bins (the Sun's angle from the camera's, or a camera pair's mean, line of sight), degrees
+PHASE_EDGES_DEG = np.array([0.0, 30.0, 60.0, 90.0, 120.0, 150.0, 180.0])
 #: track classes of the σ inflation: a two-camera formation's tracks; a three-camera formation's tracks
 #: matched in all three cameras, or in two of them
 TRACK_CLASSES = ("2 of 2", "3 of 3", "2 of 3")
@@ -42,9 +44,9 @@ _MIN_CELL_AREA_M2 = 2.0
 _MIN_SIGMA_PX = 0.02
 #: pairs a size bin needs at one range to use that range's own σ
 _MIN_PAIRS_PER_BIN = 20
-#: correct matches a Sun phase bin must be expected to have (under no phase effect) to get its own
-#: survival factor; the others take the nearest bin's
-_MIN_EXPECTED_PER_PHASE = 20.0
+#: correct matches a Sun phase bin or a material must be expected to have (under no such effect) to get
+#: its own survival factor
+_MIN_EXPECTED_CORRECT = 20.0
 
 
 def calibration_path() -> Path:
@@ -52,12 +54,16 @@ def calibration_path() -> Path:
     return Path(__file__).with_name("rendered_sift.json")
 
 
+class CalibrationTableEmpty(ValueError):
+    """A calibration table without a single measured value (too few samples to fill it)."""
+
+
 def _fill_nearest(values: list) -> np.ndarray:
     """Bins without data (None/NaN) take the value of the nearest bin with data."""
     v = np.array([np.nan if x is None else float(x) for x in values])
     ok = np.nonzero(np.isfinite(v))[0]
     if ok.size == 0:
-        raise ValueError("calibration: a table has no measured value")
+        raise CalibrationTableEmpty("calibration: a table has no measured value")
     idx = np.arange(len(v))
     near = ok[np.argmin(np.abs(idx[:, None] - ok[None, :]), axis=1)]
     return v[near]
@@ -77,7 +83,7 @@ def _survival_factor(t: dict, by: str) -> np.ndarray | None:
     surface material) over the survival its pairs' range and angle give, pooled over ranges and
     angles: correct matches of a class over those its matchable keypoints would have at the table's
     survival (mean 1 over the calibration's pairs by construction).  None in files without the
-    counts; NaN for a class expected to have fewer than ``_MIN_EXPECTED_PER_PHASE`` correct matches."""
+    counts; NaN for a class expected to have fewer than ``_MIN_EXPECTED_CORRECT`` correct matches."""
     cv = t["cross_view"]
     if f"{by}_correct" not in cv:
         return None
@@ -85,7 +91,7 @@ def _survival_factor(t: dict, by: str) -> np.ndarray | None:
     matchable = np.asarray(cv[f"{by}_matchable"], dtype=float)
     expected = np.sum(matchable * _table(cv["survival"])[:, :, None], axis=(0, 1))
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(expected >= _MIN_EXPECTED_PER_PHASE, correct.sum(axis=(0, 1)) / expected, np.nan)
+        return np.where(expected >= _MIN_EXPECTED_CORRECT, correct.sum(axis=(0, 1)) / expected, np.nan)
 
 
 def _phase_factor(t: dict) -> np.ndarray | None:
@@ -253,7 +259,7 @@ class SiftCalibration:
     epoch_sigma2_inflation: np.ndarray | None = None
     epoch_increment_sigma2_inflation: np.ndarray | None = None
     pair_survival_phase_factor: np.ndarray | None = None
-    phase_edges_deg: np.ndarray = field(default_factory=lambda: np.linspace(0.0, 180.0, 7))
+    phase_edges_deg: np.ndarray = field(default_factory=lambda: PHASE_EDGES_DEG.copy())
     pair_survival_material_factor: np.ndarray | None = None
 
     @classmethod
@@ -274,7 +280,7 @@ class SiftCalibration:
         q = [r for r in t["track_size_px_quantiles_by_range"]]
         qfill = next((r for r in q if r is not None), None)
         if qfill is None:
-            raise ValueError("calibration: no tracked keypoint sizes at any range")
+            raise CalibrationTableEmpty("calibration: no tracked keypoint sizes at any range")
         return cls(
             target=target,
             footprint_m_per_px=np.asarray(t["footprint_m_per_px"], dtype=float),
@@ -298,7 +304,7 @@ class SiftCalibration:
             provenance=dict(data.get("provenance", {})),
             pair_survival_phase_factor=_phase_factor(t),
             pair_survival_material_factor=_material_survival_factor(t),
-            phase_edges_deg=np.asarray(data.get("phase_edges_deg", np.linspace(0.0, 180.0, 7)), dtype=float),
+            phase_edges_deg=np.asarray(data.get("phase_edges_deg", PHASE_EDGES_DEG), dtype=float),
             **_inflation(t),
         )
 
@@ -495,8 +501,6 @@ class SiftCalibration:
         factor of that phase (:meth:`survival_phase_factor_at`), with ``material`` (the index of the
         keypoint's surface material) times that material's (``pair_survival_material_factor``)."""
         S = self._rate(self.cross_view_deg, self.pair_survival, footprint_m_per_px, angle_deg)
-        if phase_deg is None and (material is None or self.pair_survival_material_factor is None):
-            return S
         if phase_deg is not None:
             S = S * self.survival_phase_factor_at(phase_deg)
         if material is not None and self.pair_survival_material_factor is not None:
