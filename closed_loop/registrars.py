@@ -290,8 +290,13 @@ class MLRegistrar(Registrar):
     """Covariance-aware maximum-likelihood registration (:func:`reconstruction.registration.fit_rigid_ml`).
 
     It attains the Cramér–Rao bound of :func:`reconstruction.accuracy.attitude_increment_crlb`
-    and gives the increment's covariance itself.
+    and gives the increment's covariance itself.  ``kernel="cauchy"`` weights the residuals with a
+    Cauchy kernel of scale ``kernel_scale`` (Mahalanobis units) for heavy-tailed keypoint errors
+    (config ``estimator.ml_kernel``; :func:`reconstruction.registration.fit_rigid_ml`).
     """
+
+    kernel: str | None = None
+    kernel_scale: float = 2.5
 
     def fit(self, pairs: MatchedClouds, *, rng: np.random.Generator,
             R0: np.ndarray | None = None) -> RigidRegistration:
@@ -300,10 +305,12 @@ class MLRegistrar(Registrar):
         if R0 is not None:
             d = pairs.Q_H - pairs.P_H @ R0.T
             t0 = np.median(d[np.all(np.isfinite(d), axis=1)], axis=0)  # the pairs' translations, robustly
-            reg = fit_rigid_ml(pairs.P_H, pairs.Q_H, pairs.cov_P_H, pairs.cov_Q_H, R0=R0, t0=t0, rng=rng)
+            reg = fit_rigid_ml(pairs.P_H, pairs.Q_H, pairs.cov_P_H, pairs.cov_Q_H, R0=R0, t0=t0, rng=rng,
+                               kernel=self.kernel, kernel_scale=self.kernel_scale)
             if bool(reg.ok):
                 return reg
-        return fit_rigid_ml(pairs.P_H, pairs.Q_H, pairs.cov_P_H, pairs.cov_Q_H, rng=rng)
+        return fit_rigid_ml(pairs.P_H, pairs.Q_H, pairs.cov_P_H, pairs.cov_Q_H, rng=rng, kernel=self.kernel,
+                            kernel_scale=self.kernel_scale)
 
 
 def residual_rotation_covariance(P: np.ndarray, Q: np.ndarray, reg: RigidRegistration) -> np.ndarray:

@@ -304,6 +304,9 @@ class EstimatorConfig(ConfigTable):
         "kabsch", description="kabsch: 003 eq (11)-(13) weighted; ransac: + 3-point RANSAC; ml: covariance-aware; "
                               "map: ml to the previous epoch and to the target model's keyframes, with loop closure "
                               "(needs filter = smoother)")
+    ml_kernel: Literal["none", "cauchy"] = Field(
+        "none", description="ml and map: robust weight of the residuals; cauchy (scale 2.5 in Mahalanobis units) "
+                            "for the rendered mode's heavy-tailed keypoint errors, none: the Gaussian likelihood")
     filter: Literal["ekf", "mekf", "smoother"] = Field(
         "ekf", description="ekf: 003's additive EKF; mekf: multiplicative EKF; smoother: gtsam iSAM2 factor graph "
                            "with torque-free dynamics")

@@ -75,7 +75,10 @@ def make_observer(cfg: Config, camera: PinholeCamera | None = None, target: Targ
 def make_registrar(cfg: Config) -> Registrar:
     """The registrar of ``estimator.registration`` (``map`` fits by maximum likelihood) with the evidence thresholds."""
     e = cfg.estimator
-    return REGISTRARS["ml" if e.registration == "map" else e.registration](evidence=Evidence(min_inliers=e.min_inliers))
+    evidence = Evidence(min_inliers=e.min_inliers)
+    if e.registration in ("ml", "map"):
+        return REGISTRARS["ml"](evidence=evidence, kernel=None if e.ml_kernel == "none" else e.ml_kernel)
+    return REGISTRARS[e.registration](evidence=evidence)
 
 
 def make_estimator(cfg: Config) -> AttitudeFilter:

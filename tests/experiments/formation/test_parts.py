@@ -8,7 +8,7 @@ import pydantic
 import pytest
 
 from closed_loop import ESTIMATORS, OBSERVERS, REGISTRARS
-from experiments.config import load_config
+from experiments.config import ConfigError, load_config
 from experiments.scenarios.formation.parts import make_loop
 
 CONFIGS = Path(__file__).resolve().parents[3] / "experiments" / "configs"
@@ -27,6 +27,17 @@ def test_config_names_pick_the_registered_parts_with_their_options(mode, registr
     assert type(loop.estimator) is ESTIMATORS[filt]
     assert loop.observer.pixel_sigma_px == 0.7
     assert loop.observer.camera.image_size == (1024, 1024)
+
+
+@pytest.mark.parametrize("registration", ["ml", "map"])
+def test_ml_kernel_of_the_config_reaches_the_ml_registrar(registration):
+    over = {"estimator.registration": registration, "estimator.filter": "smoother" if registration == "map" else "ekf"}
+    _, plain = load_config(CONFIGS / "quickstart.toml", overrides=over)
+    _, cauchy = load_config(CONFIGS / "quickstart.toml", overrides={**over, "estimator.ml_kernel": "cauchy"})
+    assert make_loop(plain).registrar.kernel is None
+    assert make_loop(cauchy).registrar.kernel == "cauchy"
+    with pytest.raises(ConfigError, match="estimator.ml_kernel: Input should be 'none' or 'cauchy'"):
+        load_config(CONFIGS / "quickstart.toml", overrides={"estimator.ml_kernel": "huber"})
 
 
 def test_formation_config_is_frozen():
