@@ -44,8 +44,9 @@ def fit_rigid_ml(P: ArrayLike, Q: ArrayLike, cov_P: ArrayLike, cov_Q: ArrayLike,
     evaluated at the estimate; it is returned as ``cov``.  Inliers are re-selected every iteration
     by the chi-square gate.
 
-    With ``kernel="cauchy"`` the inliers are weighted ``1 / (1 + dᵢ² / c²)`` (``dᵢ`` their Mahalanobis
-    residual, ``c`` = ``kernel_scale``; iteratively re-weighted Gauss–Newton): an M-estimator for residuals
+    With ``kernel="cauchy"`` the Gaussian fit is then refined with the inliers weighted
+    ``1 / (1 + dᵢ² / c²)`` (``dᵢ`` their Mahalanobis residual, ``c`` = ``kernel_scale``; iteratively
+    re-weighted Gauss–Newton from the Gaussian fit, as the kernel's cost is not convex): an M-estimator for residuals
     heavier-tailed than Gaussian, such as rendered SIFT keypoints' (measured in docs/reproduction.md,
     "A robust kernel for the ML fit"). ``cov`` stays the Gaussian information of the inliers, the bound at
     the estimate.
@@ -138,37 +139,40 @@ def fit_rigid_ml(P: ArrayLike, Q: ArrayLike, cov_P: ArrayLike, cov_Q: ArrayLike,
         return r, W
 
     inl = valid.copy()
-    for _ in range(int(max_iterations)):
-        r, W = residual_info(R, t)
-        d2 = mahalanobis2(r, W)
-        if robust:
-            inl = valid & (d2 < gate2)
-        w = inl / (1.0 + d2 / kernel_scale**2) if kernel == "cauchy" else inl
-        Wm = W * w[..., None, None]
-        Sx = cross_product_matrices(_lever_H(R, Pz, cPz, W, r))  # ∂r/∂δθ = [R X̂×], ∂r/∂δt = −I
-        StW = np.swapaxes(Sx, -1, -2) @ Wm
-        Htt = np.sum(StW @ Sx, axis=1)
-        Htx = -np.sum(StW, axis=1)
-        Hxx = np.sum(Wm, axis=1)
-        gt = np.sum((StW @ r[..., None])[..., 0], axis=1)
-        gx = -np.sum((Wm @ r[..., None])[..., 0], axis=1)
-        Hm = np.empty((B, 6, 6))
-        Hm[:, :3, :3], Hm[:, :3, 3:], Hm[:, 3:, :3], Hm[:, 3:, 3:] = (
-            Htt, Htx, np.swapaxes(Htx, -1, -2), Hxx)
-        g = np.concatenate([gt, gx], -1)
-        solvable = (np.sum(inl, -1) >= 3) & np.all(np.isfinite(Hm), (-2, -1))
-        Hs = np.where(solvable[:, None, None], Hm, np.eye(6))
-        gs = np.where(solvable[:, None], g, 0.0)
-        try:
-            d = -np.linalg.solve(Hs, gs[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            d = np.stack([-np.linalg.lstsq(h, gg, rcond=None)[0] for h, gg in zip(Hs, gs,
-                                                                                  strict=True)])
-        d = np.where(np.isfinite(d), d, 0.0)
-        R = matrices_from_rotvecs(d[:, :3]) @ R
-        t = t + d[:, 3:]
-        if np.max(np.abs(d), initial=0.0) < 1e-12:
-            break
+    # the Gaussian fit first; a kernel then refines it from there (its cost is not convex: from a rough
+    # start it can settle on a subset that agrees with a wrong motion)
+    for phase in (None,) if kernel is None else (None, kernel):
+        for _ in range(int(max_iterations)):
+            r, W = residual_info(R, t)
+            d2 = mahalanobis2(r, W)
+            if robust:
+                inl = valid & (d2 < gate2)
+            w = inl / (1.0 + d2 / kernel_scale**2) if phase == "cauchy" else inl
+            Wm = W * w[..., None, None]
+            Sx = cross_product_matrices(_lever_H(R, Pz, cPz, W, r))  # ∂r/∂δθ = [R X̂×], ∂r/∂δt = −I
+            StW = np.swapaxes(Sx, -1, -2) @ Wm
+            Htt = np.sum(StW @ Sx, axis=1)
+            Htx = -np.sum(StW, axis=1)
+            Hxx = np.sum(Wm, axis=1)
+            gt = np.sum((StW @ r[..., None])[..., 0], axis=1)
+            gx = -np.sum((Wm @ r[..., None])[..., 0], axis=1)
+            Hm = np.empty((B, 6, 6))
+            Hm[:, :3, :3], Hm[:, :3, 3:], Hm[:, 3:, :3], Hm[:, 3:, 3:] = (
+                Htt, Htx, np.swapaxes(Htx, -1, -2), Hxx)
+            g = np.concatenate([gt, gx], -1)
+            solvable = (np.sum(inl, -1) >= 3) & np.all(np.isfinite(Hm), (-2, -1))
+            Hs = np.where(solvable[:, None, None], Hm, np.eye(6))
+            gs = np.where(solvable[:, None], g, 0.0)
+            try:
+                d = -np.linalg.solve(Hs, gs[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                d = np.stack([-np.linalg.lstsq(h, gg, rcond=None)[0] for h, gg in zip(Hs, gs,
+                                                                                      strict=True)])
+            d = np.where(np.isfinite(d), d, 0.0)
+            R = matrices_from_rotvecs(d[:, :3]) @ R
+            t = t + d[:, 3:]
+            if np.max(np.abs(d), initial=0.0) < 1e-12:
+                break
     r, W = residual_info(R, t)
     if robust:
         inl = valid & (mahalanobis2(r, W) < gate2)
