@@ -46,10 +46,10 @@ def fit_rigid_ml(P: ArrayLike, Q: ArrayLike, cov_P: ArrayLike, cov_Q: ArrayLike,
 
     With ``kernel="cauchy"`` the Gaussian fit is then refined with the inliers weighted
     ``1 / (1 + dᵢ² / c²)`` (``dᵢ`` their Mahalanobis residual, ``c`` = ``kernel_scale``; iteratively
-    re-weighted Gauss–Newton from the Gaussian fit, as the kernel's cost is not convex): an M-estimator for residuals
-    heavier-tailed than Gaussian, such as rendered SIFT keypoints' (measured in docs/reproduction.md,
-    "A robust kernel for the ML fit"). ``cov`` stays the Gaussian information of the inliers, the bound at
-    the estimate.
+    re-weighted Gauss–Newton from the Gaussian fit, as the kernel's cost is not convex): an
+    M-estimator for residuals heavier-tailed than Gaussian, such as rendered SIFT keypoints'
+    (docs/reproduction.md, "The rendered ML errors' tail, and a Cauchy kernel for the ML fit").
+    ``cov`` stays the Gaussian information of the inliers, the bound at the estimate.
 
     Parameters
     ----------
