@@ -389,6 +389,7 @@ class _Geometry:
     cos_sun: np.ndarray    # (E, 1, N) normal · direction to the Sun
     c_T: np.ndarray        # (E, n, 3) camera centres, body frame, m
     R_CT: np.ndarray       # (E, n, 3, 3)
+    brightness: np.ndarray | None = None   # relative to the image's exposure (calibrated mode; NaN: not computed)
 
 
 @one_blas_thread()

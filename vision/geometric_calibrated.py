@@ -46,6 +46,7 @@ from scipy.special import ndtr, ndtri
 
 from vision.calibration import SiftCalibration, load_calibration, track_class
 from vision.camera import PinholeCamera
+from vision.face_brightness import entry_brightness
 from vision.observation import (
     REASON_EARTH_SHADOW,
     REASON_OUTSIDE_FOV,
@@ -259,7 +260,7 @@ def _setup(cams, T, target, feats, cal, rngs) -> dict:
     c_dist = np.linalg.norm(np.einsum("...ji,...j->...i", T[..., :3, :3], T[..., :3, 3]), axis=-1)  # (R, E, n)
     fp_lo = max(float(np.min(c_dist)) - target.radius_m, 1e-3) / float(np.max(f_px))
     fp_hi = (float(np.max(c_dist)) + target.radius_m) / float(np.min(f_px))
-    bound = (_detection_bound(cal, fp_lo, fp_hi, material) - rho_sub) / rho_F   # (V, S, N)
+    bound = (_detection_bound(cal, fp_lo, fp_hi, material) * max(cal.max_brightness_factor, 1.0) - rho_sub) / rho_F  # (V, S, N)
     bound = np.broadcast_to(bound, (*bound.shape[:2], N))
     return {"u_det": u_det, "bound": bound.max(axis=(0, 1)), "bound_view": bound.max(axis=1),
             "bound_sun": bound.max(axis=0), "rho_F": rho_F, "rho_sub": rho_sub, "is_site": is_site,
@@ -380,9 +381,13 @@ def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f
     sub = rho_sub if np.ndim(rho_sub) == 0 else rho_sub[f_i]
     rho = rho_F if np.ndim(rho_F) == 0 else rho_F[f_i]
     bins = cal.density_bins(fp_v, cv_v)
+    # the brightness of each entry if lit, relative to its image's auto-exposure, and its detection factor
+    b_lit = None if cal.detection_brightness_factor is None else \
+        entry_brightness(g, target, feats, _sun_T(q, sun), f_px, at, e_i, f_i, side_sun)
+    f_lit, f_dark = cal.brightness_factor_at(np.zeros(len(at)) if b_lit is None else b_lit), float(cal.brightness_factor_at(0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
-        p_lit = (cal.density_at(bins, cal.sun_bin(side_sun, can_lit), mat) - sub) / rho
-        p_dark = (cal.density_at(bins, np.zeros(len(at), dtype=int), mat) - sub) / rho
+        p_lit = (cal.density_at(bins, cal.sun_bin(side_sun, can_lit), mat) * f_lit - sub) / rho
+        p_dark = (cal.density_at(bins, np.zeros(len(at), dtype=int), mat) * f_dark - sub) / rho
     # features above both detection probabilities are not detected whatever the ray casting gives:
     # cast rays only for the others (the shadow of a feature decides only its own lit flag)
     det &= u < np.maximum(p_lit, p_dark)
@@ -390,7 +395,12 @@ def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f
     vis[at] = det
     g.vis = vis.reshape(E, n, N)
     dark = _occlude(g, target, feats, _sun_T(q, sun), drop_shadowed=False)     # (E, N)
-    vis[at] &= u < np.where(can_lit & ~np.take(dark, e_i * N + f_i), p_lit, p_dark)
+    lit = can_lit & ~np.take(dark, e_i * N + f_i)
+    vis[at] &= u < np.where(lit, p_lit, p_dark)
+    if b_lit is not None:
+        b = np.full(E * n * N, np.nan)
+        b[at] = np.where(lit, b_lit, 0.0)
+        g.brightness = b.reshape(E, n, N)
     return g, fp
 
 
@@ -448,6 +458,7 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
     mat_c = target.triangle_material[feats.triangle_id[cand_id]] \
         if cal.pair_survival_material_factor is not None \
         and len(cal.pair_survival_material_factor) == len(target.materials) else None
+    b_c = None if g.brightness is None or cal.pair_survival_brightness_factor is None else g.brightness[:, :, cand]
     v_size = rng.random(C)
     e_kept = rng.standard_normal((C, n, 2))                               # each feature's error kept per view
     rho_c, rho_t = _calibration_correlations(cal)
@@ -479,6 +490,9 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         two = np.nonzero(n_det >= 2)[0]
         S = cal.pair_survival_at(np.nan_to_num(fp_f[two], nan=1.0)[:, None, None], ang[None], phase_deg[k][None],
                                  None if mat_c is None else mat_c[two][:, None, None])
+        if b_c is not None:             # the geometric mean of the factors of the pair's two views
+            fb = np.sqrt(cal.brightness_factor_at(b_c[k][:, two].T, survival=True))        # (two, n)
+            S = np.minimum(S * fb[:, :, None] * fb[:, None, :], 1.0)
         if feats.sites is not None:                                       # distinct sites match more often
             site = cand_id[two] < len(feats.sites)
             S = np.where(site[:, None, None], feats.sites.pair_survival(

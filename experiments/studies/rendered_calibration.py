@@ -46,8 +46,21 @@ import numpy as np
 
 from attitude.quaternion import matrix_from_quat, quat_from_rotvec, quat_multiply, quat_normalize
 from experiments.sweep import child_seeds
-from vision.calibration import COS_VIEW_EDGES, PHASE_EDGES_DEG, SIZE_EDGES_PX, SUN_BIN_EDGES
+from vision.calibration import (
+    COS_VIEW_EDGES,
+    PHASE_EDGES_DEG,
+    SIZE_EDGES_PX,
+    SUN_BIN_EDGES,
+    SiftCalibration,
+)
 from vision.camera import PinholeCamera, look_at
+from vision.face_brightness import (
+    BRIGHTNESS_EDGES,
+    brightness_bin,
+    face_radiance,
+    material_optics,
+    reference_radiance,
+)
 from vision.features import Keypoints, detect, fundamental_from_poses, match_pair, match_views
 from vision.render import RenderResult, cast_body_points, render
 from vision.rendered import foreground_mask
@@ -164,7 +177,8 @@ def _redetected(uv_expected: np.ndarray, uv_keypoints: np.ndarray, tol_px: float
 
 
 def _count_materials(counts: np.ndarray, material: np.ndarray) -> None:
-    """Add the keypoints of each material (``material`` -1: off the target, not counted) to ``counts``."""
+    """Add the keypoints of each material (or other class; ``material`` -1: off the target, not
+    counted) to ``counts``."""
     m = material[material >= 0]
     counts += np.bincount(m, minlength=len(counts))[: len(counts)]
 
@@ -198,7 +212,8 @@ def _correct(rA, qA, XA, uvA, rB, qB, XB, uvB, tol_px):
 
 
 def _surface_geometry(r: RenderResult, target: Target, q_HT: np.ndarray, sun_H: np.ndarray):
-    """Per target pixel: view-angle cosine, Sun bin, pixel area (m²); and the pixel indices."""
+    """Per target pixel: view-angle bin, Sun bin, pixel area (m²), material and relative-brightness
+    bin (:mod:`vision.face_brightness`); and the pixel indices."""
     R_HT = matrix_from_quat(q_HT)
     v, u = np.nonzero(r.mask)
     n_T = target.triangle_normals_T[r.triangle_id[v, u]]
@@ -216,7 +231,14 @@ def _surface_geometry(r: RenderResult, target: Target, q_HT: np.ndarray, sun_H: 
     view_bin = np.clip(np.searchsorted(COS_VIEW_EDGES, cos_v, side="right") - 1, 0, len(COS_VIEW_EDGES) - 2)
     f = np.sqrt(r.camera.K[0, 0] * r.camera.K[1, 1])
     area = (r.depth_z_m[v, u].astype(float) / f) ** 2 / np.maximum(cos_v, 0.05)
-    return v, u, view_bin, sun_bin, area, target.triangle_material[r.triangle_id[v, u]]
+    mat = target.triangle_material[r.triangle_id[v, u]]
+    h = to_cam + s_T
+    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
+    n_dot_h = side * np.sum(n_T * h, axis=1)
+    optics = material_optics(target)
+    ref = reference_radiance(face_radiance(mat, cos_s, n_dot_h, cos_s > 0, optics))     # one weight per pixel
+    b = face_radiance(mat, cos_s, n_dot_h, r.lit[v, u], optics) / ref
+    return v, u, view_bin, sun_bin, area, mat, brightness_bin(b)
 
 
 def _size_bin(size_px: np.ndarray) -> np.ndarray:
@@ -232,6 +254,10 @@ class _Tally:
         self.area = np.zeros((nv, ns))
         self.mat_kp = np.zeros(n_materials)
         self.mat_area = np.zeros(n_materials)
+        # per relative-brightness bin: keypoints, and the area per (view, Sun, material) bin the
+        # density tables would fill it with (the factor's prediction, vision.calibration.model)
+        self.bright_kp = np.zeros(len(BRIGHTNESS_EDGES) - 1)
+        self.bright_area = np.zeros((len(BRIGHTNESS_EDGES) - 1, nv, ns, n_materials))
         self.phase_kp = np.zeros(len(PHASE_EDGES_DEG) - 1)
         self.phase_area = np.zeros(len(PHASE_EDGES_DEG) - 1)
         a, d = len(spec.cross_view_deg), len(spec.epoch_change_deg)
@@ -240,6 +266,8 @@ class _Tally:
         self.cv_phase = {k: np.zeros((a, len(PHASE_EDGES_DEG) - 1)) for k in ("matchable", "redetected", "correct")}
         # and per material of A's keypoint
         self.cv_material = {k: np.zeros((a, n_materials)) for k in ("matchable", "correct")}
+        # and per relative-brightness bin of A's keypoint
+        self.cv_brightness = {k: np.zeros((a, len(BRIGHTNESS_EDGES) - 1), dtype=np.int64) for k in ("matchable", "correct")}
         self.ep = {k: np.zeros(d) for k in ("tracks_visible", "redetected", "associations", "correct")}
         self.pair_bins: list[np.ndarray] = []   # (k, 2) size bins of A and B
         self.pair_e2: list[np.ndarray] = []     # (k,) mean squared residual per axis, px²
@@ -275,8 +303,9 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
     t.samples += 1
     if not rA.ok:
         return
-    v, u, vb, sb, area, mat = _surface_geometry(rA, target, q, sun)
+    v, u, vb, sb, area, mat, bb = _surface_geometry(rA, target, q, sun)
     np.add.at(t.area, (vb, sb), area)
+    np.add.at(t.bright_area, (bb, vb, sb, mat), area)
     np.add.at(t.mat_area, mat, area)
     pb = _phase_bin(sun, eA)
     t.phase_area[pb] += area.sum()
@@ -287,8 +316,10 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
     hit = on >= 0
     np.add.at(t.kp, (vb[on[hit]], sb[on[hit]]), 1.0)
     np.add.at(t.mat_kp, mat[on[hit]], 1.0)
+    np.add.at(t.bright_kp, bb[on[hit]], 1.0)
     t.phase_kp[pb] += hit.sum()
     kp_mat = np.where(hit, mat[np.maximum(on, 0)], -1)       # material under each keypoint (-1: off the target)
+    kp_bb = np.where(hit, bb[np.maximum(on, 0)], -1)         # and its relative-brightness bin
     if len(kA) < 2:
         return
     XA = _body_points(rA, target, q, kA.uv_px)
@@ -310,6 +341,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
         t.cv_phase["matchable"][a, pp] += seenB.sum()
         t.cv_phase["redetected"][a, pp] += _redetected(_project(rB, q, XA[seenB])[0], kB.uv_px, spec.truth_tol_px)
         _count_materials(t.cv_material["matchable"][a], kp_mat[seenB])
+        _count_materials(t.cv_brightness["matchable"][a], kp_bb[seenB])
         F = fundamental_from_poses(cam.K, T_A, cam.K, T_B)
         m = match_pair(kA, kB, ratio=spec.ratio, F_AB=F, epipolar_tol_px=spec.epipolar_tol_px)
         if len(m) == 0:
@@ -320,6 +352,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
         t.cv["correct"][a] += ok.sum()
         t.cv_phase["correct"][a, pp] += ok.sum()
         _count_materials(t.cv_material["correct"][a], kp_mat[m[ok, 0]])
+        _count_materials(t.cv_brightness["correct"][a], kp_bb[m[ok, 0]])
         mc = m[ok]
         res = kB.uv_px[mc[:, 1]] - _project(rB, q, XA[mc[:, 0]])[0]
         t.pair_e2.append(np.mean(res**2, axis=1))
@@ -448,6 +481,7 @@ def calibrate(spec: CalibrationSpec = DEFAULT, *, command: str = "",
         "sun_bin_edges": list(SUN_BIN_EDGES),
         "sun_bins": "bin 0: surface not lit (shadowed or facing away); bins 1..: cosine of the Sun incidence",
         "phase_edges_deg": list(PHASE_EDGES_DEG),
+        "brightness_edges": list(BRIGHTNESS_EDGES[:-1]) + ["inf"],
         "provenance": {
             "command": command,
             "coobs_version": _coobs_version(),
@@ -491,7 +525,7 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
         quant.append([round(float(x), 3) for x in np.quantile(sizes, _QUANTILES)] if sizes.size else None)
     s_all, c_all = _sigma_per_bin(np.concatenate(all_bins), np.concatenate(all_e2), nz)
     e2_all = np.concatenate(all_e2)
-    return {
+    out = {
         "name": target.name,
         "area_m2": round(float(target.triangle_areas_m2.sum()), 3),
         "samples_per_range": [t.samples for t in per_range],
@@ -511,6 +545,7 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
         "material_area_m2": [t.mat_area.round(4).tolist() for t in per_range],
         "phase_keypoints": [t.phase_kp.astype(int).tolist() for t in per_range],
         "phase_area_m2": [t.phase_area.round(3).tolist() for t in per_range],
+        "brightness_keypoints": [t.bright_kp.astype(int).tolist() for t in per_range],
         "cross_view": {
             "angle_deg": list(spec.cross_view_deg),
             **{k: [t.cv[k].astype(int).tolist() for t in per_range] for k in ("matchable", "matches", "correct")},
@@ -523,8 +558,8 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
             "three_view_tracks": [t.tracks3 for t in per_range],
             **{f"phase_{k}": [t.cv_phase[k].astype(int).tolist() for t in per_range]
                for k in ("matchable", "redetected", "correct")},
-            **{f"material_{k}": [t.cv_material[k].astype(int).tolist() for t in per_range]
-               for k in ("matchable", "correct")},
+            **{f"{c}_{k}": [getattr(t, f"cv_{c}")[k].astype(int).tolist() for t in per_range]
+               for c in ("material", "brightness") for k in ("matchable", "correct")},
         },
         "association": {
             "change_deg": list(spec.epoch_change_deg),
@@ -534,3 +569,18 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
             "false_rate": [_ratio(t.ep["associations"] - t.ep["correct"], t.ep["associations"]) for t in per_range],
         },
     }
+    out["brightness_expected_keypoints"] = brightness_expected_keypoints(
+        out, np.stack([t.bright_area for t in per_range])).round(2).tolist()
+    return out
+
+
+def brightness_expected_keypoints(summary: dict, area_m2: np.ndarray) -> np.ndarray:
+    """Keypoints ``(R, B)`` the target's density table and material factors (as
+    :class:`vision.calibration.SiftCalibration` reads them from ``summary``) predict on the surface of
+    each range and relative-brightness bin, from its area per (view, Sun, material) bin ``area_m2 (R,
+    B, V, S, P)``: the denominator of the detection brightness factor (the file keeps these sums, not
+    the areas)."""
+    cal = SiftCalibration.from_dict({"targets": {"t": summary}}, "t")
+    P = area_m2.shape[-1]
+    mf = cal.material_factor if cal.material_factor.shape[1] == P else np.ones((len(area_m2), P))
+    return np.einsum("rbvsp,rvs,rp->rb", area_m2, cal.density_per_m2, mf)

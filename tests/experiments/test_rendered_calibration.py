@@ -44,8 +44,15 @@ def test_quick_calibration_writes_a_readable_file_with_its_command(tmp_path):
         np.testing.assert_array_equal(np.sum(cv[f"phase_{k}"], axis=-1), total)
         assert np.all(np.sum(cv[f"material_{k}"], axis=-1) <= total)
         assert np.all(np.sum(cv[f"material_{k}"], axis=-1) >= 0.9 * total)
+        # each keypoint on the target has one brightness bin as it has one material
+        np.testing.assert_array_equal(np.sum(cv[f"brightness_{k}"], axis=-1), np.sum(cv[f"material_{k}"], axis=-1))
     assert np.all(np.asarray(cv["phase_correct"]) <= np.asarray(cv["phase_redetected"]))
     assert cal.pair_survival_phase_factor.shape == (6,) and cal.pair_survival_material_factor.shape == (7,)
+    # the detection counts per relative-brightness bin: every keypoint on the target in one bin, and
+    # the expectation of the density tables sums to the keypoints (the tables hold the mean)
+    np.testing.assert_array_equal(np.sum(t["brightness_keypoints"], axis=-1), np.sum(t["keypoints"], axis=(1, 2)))
+    assert np.sum(t["brightness_expected_keypoints"]) > 0
+    assert cal.detection_brightness_factor.shape == cal.pair_survival_brightness_factor.shape == (9,)
     # the triangulation σ² inflation step ran (one attitude, 10°) and says how it was made
     assert data["provenance"]["triangulation_nees"]["spec"]["attitudes"] == 1
     assert sum(map(sum, t["triangulation_nees"]["points"][0])) > 0

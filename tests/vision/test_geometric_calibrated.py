@@ -117,10 +117,12 @@ def _scatter(vis, cols, n):
 
 @pytest.mark.parametrize("sites", [False, True])
 def test_detection_on_the_visible_subset_equals_the_full_array_definition(fy1, sites):
-    """The detections (densities evaluated only where the cheap visibility tests pass, on flat indices)
+    """The detections (densities evaluated only where the cheap visibility tests pass, on flat indices;
+    times the factor of the relative brightness, vision.face_brightness)
     equal the definition evaluated on every (epoch, camera, feature), bit for bit: same draws, same
     rays cast; the features left out by the bounds of their Sun bins are detected nowhere."""
     import vision.geometric_calibrated as gc
+    from vision.face_brightness import face_radiance, material_optics, sample_references
     from vision.geometric import _geometry, _occlude, _sun_T
     from vision.texture_sites import footprint_level, site_features
 
@@ -145,13 +147,25 @@ def test_detection_on_the_visible_subset_equals_the_full_array_definition(fy1, s
     g = _geometry([CAM] * 3, TT, q, sun, fsun, sub, min_feature_px=0.0, cos_view=0.0, cos_sun=-2.0, margin_px=0.0)
     fp = g.z / st["f_px"][None, :, None]
     is_site = st["is_site"][keep]
+    # each entry's brightness relative to its image's exposure reference (vision.face_brightness)
+    s_T = _sun_T(q, sun)
+    to_cam = g.c_T[:, :, None, :] - sub.X_T[None, None]
+    to_cam /= np.linalg.norm(to_cam, axis=-1, keepdims=True)
+    h = to_cam + s_T[:, None, None, :]
+    h /= np.linalg.norm(h, axis=-1, keepdims=True)
+    side = np.where(g.cos_view >= 0, 1.0, -1.0)
+    can_lit = side * g.cos_sun > 0
+    L = face_radiance(fy1.triangle_material[sub.triangle_id][None, None], side * g.cos_sun,
+                      side * np.einsum("enfk,fk->enf", h, sub.normal_T), can_lit, material_optics(fy1))
+    b_lit = L / sample_references(g.R_CT, g.c_T, s_T, st["f_px"], fy1)[:, :, None]
+    assert cal.detection_brightness_factor is not None
     with np.errstate(invalid="ignore", divide="ignore"):
         g.vis &= ~is_site | (sub.scale_m * np.abs(g.cos_view) / fp >= gc.MIN_FORESHORTENED_PX)
-        side = np.where(g.cos_view >= 0, 1.0, -1.0)
-        can_lit = side * g.cos_sun > 0
         fp_ok = np.where(g.vis, fp, 1.0)
-        p_lit = (cal.density(fp_ok, g.cos_view, cal.sun_bin(side * g.cos_sun, can_lit), material) - rho_sub) / rho_F
-        p_dark = (cal.density(fp_ok, g.cos_view, np.zeros(fp.shape, dtype=int), material) - rho_sub) / rho_F
+        p_lit = (cal.density(fp_ok, g.cos_view, cal.sun_bin(side * g.cos_sun, can_lit), material)
+                 * cal.brightness_factor_at(b_lit) - rho_sub) / rho_F
+        p_dark = (cal.density(fp_ok, g.cos_view, np.zeros(fp.shape, dtype=int), material)
+                  * cal.brightness_factor_at(0.0) - rho_sub) / rho_F
     g.vis &= u < np.maximum(p_lit, p_dark)
     dark = _occlude(g, fy1, sub, _sun_T(q, sun), drop_shadowed=False)
     g.vis &= u < np.where(can_lit & ~dark[:, None, :], p_lit, p_dark)

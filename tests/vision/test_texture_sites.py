@@ -125,7 +125,7 @@ def test_draws_are_deterministic_under_a_seeded_rng(fy1):
 @pytest.mark.parametrize("distance_m", [40.0, 80.0])
 def test_the_measured_density_is_honoured_on_average(plate, distance_m):
     """A lit plate seen head-on: detections per m² over many draws equal the calibration's density of the
-    bin (the sites first, uniform fillers for what the sites cannot carry)."""
+    bin times its brightness factor (the sites first, uniform fillers for what the sites cannot carry)."""
     cal = load_calibration("fy1")
     T = np.stack([look_at(np.array([distance_m, 0.0, 0.0]), np.zeros(3))])
     q = np.array([[1.0, 0.0, 0.0, 0.0]])
@@ -141,7 +141,9 @@ def test_the_measured_density_is_honoured_on_average(plate, distance_m):
         keep, vis = detections([CAM], T[None], plate, q, sun, np.ones(1), feats, np.random.default_rng(seed),
                                calibration=cal)
         n_det.append(int(np.sum(vis[0, 0] & front[keep])))
-    expected = float(cal.density(fp, 1.0, cal.sun_bin(1.0, True))) * 4.0   # 2 m × 2 m face
+    # 2 m × 2 m face; the plate is all the camera sees, evenly lit: its brightness is the exposure's
+    # reference (relative brightness 1, vision.face_brightness)
+    expected = float(cal.density(fp, 1.0, cal.sun_bin(1.0, True)) * cal.brightness_factor_at(1.0)) * 4.0
     assert np.mean(n_det) == pytest.approx(expected, rel=0.1)
 
 

@@ -100,9 +100,10 @@ def _phase_factor(t: dict) -> np.ndarray | None:
     return None if g is None else _fill_nearest(list(g))
 
 
-def _material_survival_factor(t: dict) -> np.ndarray | None:
-    """The survival factor per surface material; 1 for a material with too few matches."""
-    g = _survival_factor(t, "material")
+def _class_survival_factor(t: dict, by: str) -> np.ndarray | None:
+    """The survival factor per surface material or relative-brightness bin (``by``); 1 for a class
+    with too few matches."""
+    g = _survival_factor(t, by)
     return None if g is None else np.where(np.isfinite(g), g, 1.0)
 
 
@@ -127,6 +128,19 @@ def _material_factor(t: dict) -> np.ndarray:
     f = np.where(area >= _MIN_CELL_AREA_M2, f, 1.0)
     # renormalise so that the area-weighted mean factor stays 1 (the table already holds the mean)
     return f * area.sum(axis=1, keepdims=True) / np.sum(f * area, axis=1, keepdims=True)
+
+
+def _brightness_factor(t: dict) -> np.ndarray | None:
+    """Detection factor per relative-brightness bin (:mod:`vision.face_brightness`): keypoints over
+    those the density table and the material factors predict on the bin's surface, pooled over
+    ranges; 1 for a bin expected to hold fewer than ``_MIN_EXPECTED_CORRECT`` keypoints; None in
+    files without the counts."""
+    if "brightness_expected_keypoints" not in t:
+        return None
+    kp = np.asarray(t["brightness_keypoints"], dtype=float).sum(axis=0)
+    expected = np.asarray(t["brightness_expected_keypoints"], dtype=float).sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(expected >= _MIN_EXPECTED_CORRECT, kp / expected, 1.0)
 
 
 def _bin_index(edges: np.ndarray, x: ArrayLike, side: str, lo: int, hi: int) -> np.ndarray:
@@ -215,6 +229,11 @@ class SiftCalibration:
     phase_edges_deg : ndarray (P + 1,)
     pair_survival_material_factor : ndarray (M,) or None
         The same per surface material of the keypoint (None in files without it).
+    detection_brightness_factor, pair_survival_brightness_factor : ndarray (B,) or None
+        Detection density in each relative-brightness bin (:data:`vision.face_brightness.BRIGHTNESS_EDGES`)
+        over what the density table and material factors give there, and cross-view survival by the
+        bin of the first camera's keypoint over the table's (None in files without them: no
+        brightness dependence).
     track_persistence : ndarray (R,)
         Fraction of the tracks of two cameras at the first cross-view angle that are tracks of the
         same cameras again after the first epoch change (NaN where not measured).
@@ -261,6 +280,8 @@ class SiftCalibration:
     pair_survival_phase_factor: np.ndarray | None = None
     phase_edges_deg: np.ndarray = field(default_factory=lambda: PHASE_EDGES_DEG.copy())
     pair_survival_material_factor: np.ndarray | None = None
+    detection_brightness_factor: np.ndarray | None = None
+    pair_survival_brightness_factor: np.ndarray | None = None
 
     @classmethod
     def from_dict(cls, data: dict, target: str) -> SiftCalibration:
@@ -299,11 +320,13 @@ class SiftCalibration:
             track_persistence=np.array([np.nan if v is None else float(v) for v in
                                         t["cross_view"].get("persistence", [None] * len(t["ranges_m"]))]),
             material_factor=_material_factor(t),
+            detection_brightness_factor=_brightness_factor(t),
             three_over_two_ratio=(float(sum(t["cross_view"]["three_view_tracks"]))
                                   / max(1.0, float(sum(t["cross_view"]["two_view_tracks"])))),
             provenance=dict(data.get("provenance", {})),
             pair_survival_phase_factor=_phase_factor(t),
-            pair_survival_material_factor=_material_survival_factor(t),
+            pair_survival_material_factor=_class_survival_factor(t, "material"),
+            pair_survival_brightness_factor=_class_survival_factor(t, "brightness"),
             phase_edges_deg=np.asarray(data.get("phase_edges_deg", PHASE_EDGES_DEG), dtype=float),
             **_inflation(t),
         )
@@ -460,6 +483,20 @@ class SiftCalibration:
     def _log_density(self) -> np.ndarray:
         """log of the density table times each material's factor, ``(R, V, S, P)``."""
         return np.log(np.maximum(self.density_per_m2, 1e-9)[..., None] * self.material_factor[:, None, None, :])
+
+    def brightness_factor_at(self, brightness: ArrayLike, *, survival: bool = False) -> np.ndarray:
+        """Detection factor (``survival``: cross-view survival factor) of surfaces at this relative
+        brightness (:mod:`vision.face_brightness`; 1 without the table)."""
+        from vision.face_brightness import brightness_bin
+
+        f = self.pair_survival_brightness_factor if survival else self.detection_brightness_factor
+        return np.ones(np.shape(brightness)) if f is None else f[brightness_bin(brightness)]
+
+    @property
+    def max_brightness_factor(self) -> float:
+        """The largest detection factor of any relative brightness (1 without the table)."""
+        f = self.detection_brightness_factor
+        return 1.0 if f is None else float(np.max(f))
 
     def sun_bin(self, cos_sun: ArrayLike, lit: ArrayLike) -> np.ndarray:
         """Sun bin of surfaces with this Sun-incidence cosine (lit side) and lit flag."""

@@ -1,0 +1,135 @@
+"""A surface's brightness in an image relative to the camera's auto-exposure (issue 16).
+
+The rendered mode's camera sets its exposure per image (:class:`vision.sensor.SensorModel`: the
+99th percentile of the target's radiance at 80 % of the full well), so how bright a face comes out
+depends on the rest of the target in the same image: a solar wing lit at grazing incidence is
+well exposed when it is all the camera sees and almost black beside a bus lit face-on.  SIFT finds
+few keypoints on faces a few digital numbers above the noise, so the detection density of a face
+depends on that relative brightness, not only on its own Sun incidence.
+
+Both the calibration (:mod:`experiments.studies.rendered_calibration`, per pixel of the rendered
+images) and the calibrated geometric mode (:mod:`vision.geometric_calibrated`, per feature) use the
+same texture-free model, so the factor measured by one applies to the other:
+
+- the *face radiance* of a surface point seen from its camera-facing side is the renderer's
+  Lambert and Blinn–Phong terms with the material's mean albedo, specular weight and shininess
+  (:func:`face_radiance`), zero where the point is not lit;
+- the image's *reference radiance* is the :data:`EXPOSURE_PERCENTILE` percentile, over the visible
+  target surface weighted by its area in pixels, of the face radiance ignoring cast shadows
+  (:func:`reference_radiance`);
+- the *relative brightness* ``b`` of a point is its face radiance (with its own shadow) over the
+  reference, binned by :data:`BRIGHTNESS_EDGES` (bin 0: not lit).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from vision.sensor import SensorModel
+
+__all__ = ["BRIGHTNESS_EDGES", "EXPOSURE_PERCENTILE", "brightness_bin", "entry_brightness", "exposure_sample", "face_radiance",
+           "material_optics", "reference_radiance", "sample_references"]
+
+#: relative brightness bins: bin 0 holds the points that are not lit (b = 0), then steps of √2 from
+#: 0.1 to 0.8 (on FY-1's solar wings b = 0.1–0.2 is about 7–15 digital numbers of 255, where the
+#: rendered images' keypoints thin out)
+BRIGHTNESS_EDGES = np.array([0.0, 1e-12, 0.1, 0.14, 0.2, 0.28, 0.4, 0.56, 0.8, np.inf])
+#: percentile of the radiance the renderer's default auto-exposure places at its level
+EXPOSURE_PERCENTILE = float(SensorModel().auto_exposure_percentile)
+#: area-uniform points of the outer surface used to find an image's reference radiance in the
+#: geometric mode (drawn once per target from its seed)
+EXPOSURE_SAMPLE_POINTS = 4000
+
+
+def material_optics(target) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean albedo, specular weight and shininess of each of the target's materials, ``(P,)`` each."""
+    m = target.materials
+    return (np.array([x.albedo for x in m], dtype=float), np.array([x.specular for x in m], dtype=float),
+            np.array([x.shininess for x in m], dtype=float))
+
+
+def face_radiance(material: ArrayLike, cos_sun: ArrayLike, n_dot_h: ArrayLike, lit: ArrayLike,
+                  optics: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
+    """Texture-free radiance (the renderer's units: 1 is a white Lambertian face under the full Sun)
+    of surface points of these materials: ``albedo · cos_sun + specular · max(n·h, 0)^shininess``
+    where ``lit``, 0 elsewhere; ``cos_sun`` and ``n_dot_h`` on the camera-facing side (``h`` the
+    half vector between the Sun and the camera)."""
+    albedo, ks, ns = optics
+    m = np.asarray(material, dtype=np.int64)
+    L = albedo[m] * np.maximum(cos_sun, 0.0) + ks[m] * np.maximum(n_dot_h, 0.0) ** ns[m]
+    return np.where(np.asarray(lit, dtype=bool), L, 0.0)
+
+
+def reference_radiance(radiance: ArrayLike, weight: ArrayLike | None = None, axis: int = -1) -> np.ndarray:
+    """The :data:`EXPOSURE_PERCENTILE` percentile of the positive ``radiance`` along ``axis``, each
+    value weighted by ``weight`` (pixels of area; None: one each), by the inverted weighted CDF;
+    NaN where nothing is positive."""
+    L = np.moveaxis(np.asarray(radiance, dtype=float), axis, -1)
+    w = np.ones_like(L) if weight is None else np.moveaxis(np.broadcast_to(weight, np.shape(radiance)), axis, -1)
+    w = np.where(L > 0, w, 0.0)
+    order = np.argsort(L, axis=-1)
+    Ls, ws = np.take_along_axis(L, order, -1), np.take_along_axis(w, order, -1)
+    cw = np.cumsum(ws, axis=-1)
+    total = cw[..., -1:]
+    k = np.sum(cw < EXPOSURE_PERCENTILE / 100.0 * total, axis=-1, keepdims=True)
+    ref = np.take_along_axis(Ls, np.minimum(k, L.shape[-1] - 1), -1)[..., 0]
+    return np.where(total[..., 0] > 0, ref, np.nan)
+
+
+def brightness_bin(b: ArrayLike) -> np.ndarray:
+    """Index of the bin of :data:`BRIGHTNESS_EDGES` of relative brightness ``b`` (NaN: bin 0)."""
+    b = np.nan_to_num(np.asarray(b, dtype=float), nan=0.0)
+    return np.clip(np.searchsorted(BRIGHTNESS_EDGES, b, side="right") - 1, 0, len(BRIGHTNESS_EDGES) - 2)
+
+
+def exposure_sample(target):
+    """The target's fixed area-uniform sample of its outer surface (:data:`EXPOSURE_SAMPLE_POINTS`,
+    cached on the target)."""
+    from vision.geometric import surface_features
+
+    return target._cached("exposure_sample", lambda: surface_features(
+        target, n_features=EXPOSURE_SAMPLE_POINTS, descriptor_dim=1, surface="outer",
+        rng=np.random.SeedSequence([target.seed, 0xE7905])))
+
+
+def sample_references(R_CT: np.ndarray, c_T: np.ndarray, s_T: np.ndarray, f_px: np.ndarray, target) -> np.ndarray:
+    """Reference radiance ``(E, n)`` of each camera's image from the target's exposure sample: the
+    sample points that face a camera (either side, in front of it; occlusion is not tested), weighted
+    by their area in pixels, with the face radiance ignoring cast shadows.  ``R_CT (E, n, 3, 3)``,
+    ``c_T (E, n, 3)`` the cameras in the body frame, ``s_T (E, 3)`` the Sun, ``f_px (n,)``."""
+    S = exposure_sample(target)
+    mat = target.triangle_material[S.triangle_id]
+    X, nrm = S.X_T, S.normal_T
+    to_cam = c_T[:, :, None, :] - X                                       # (E, n, M, 3)
+    dist = np.linalg.norm(to_cam, axis=-1)
+    to_cam /= dist[..., None]
+    cos_v = np.einsum("enmk,mk->enm", to_cam, nrm)
+    side = np.where(cos_v >= 0, 1.0, -1.0)
+    cos_s = side * (s_T @ nrm.T)[:, None, :]
+    h = to_cam + s_T[:, None, None, :]
+    h /= np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-12)
+    n_dot_h = side * np.einsum("enmk,mk->enm", h, nrm)
+    z = -np.einsum("enk,enmk->enm", R_CT[:, :, 2, :], to_cam) * dist      # depth along the optical axis
+    L = face_radiance(mat, cos_s, n_dot_h, cos_s > 0, material_optics(target))
+    area_px = (S.area_m2 / len(X)) * np.abs(cos_v) * (f_px[None, :, None] / np.maximum(z, 1e-9)) ** 2
+    return reference_radiance(np.where(z > 0, L, 0.0), area_px)
+
+
+def entry_brightness(g, target, feats, s_T: np.ndarray, f_px: np.ndarray, at: np.ndarray, e_i: np.ndarray,
+                     f_i: np.ndarray, cos_sun: np.ndarray) -> np.ndarray:
+    """Relative brightness, if lit, of the geometric mode's (epoch, camera, feature) entries at the
+    flat indices ``at`` of ``g.vis`` (``vision.geometric._Geometry``; ``e_i``, ``f_i`` their epochs
+    and features, ``cos_sun`` the Sun's incidence on their camera-facing side): their face radiance
+    over their image's :func:`sample_references`."""
+    ref = sample_references(g.R_CT, g.c_T, s_T, f_px, target).reshape(-1)       # (E n,)
+    en_i = at // g.vis.shape[2]
+    to_cam = g.c_T.reshape(-1, 3)[en_i] - feats.X_T[f_i]
+    to_cam /= np.linalg.norm(to_cam, axis=1, keepdims=True)
+    h = to_cam + s_T[e_i]
+    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
+    n = feats.normal_T[f_i] * np.where(np.take(g.cos_view, at) >= 0, 1.0, -1.0)[:, None]
+    L = face_radiance(target.triangle_material[feats.triangle_id[f_i]], cos_sun, np.sum(n * h, axis=1),
+                      cos_sun > 0, material_optics(target))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return L / np.take(ref, en_i)
