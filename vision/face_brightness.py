@@ -64,17 +64,36 @@ def face_radiance(material: ArrayLike, cos_sun: ArrayLike, n_dot_h: ArrayLike, l
 def reference_radiance(radiance: ArrayLike, weight: ArrayLike | None = None, axis: int = -1) -> np.ndarray:
     """The :data:`EXPOSURE_PERCENTILE` percentile of the positive ``radiance`` along ``axis``, each
     value weighted by ``weight`` (pixels of area; None: one each), by the inverted weighted CDF;
-    NaN where nothing is positive."""
+    NaN where nothing is positive.
+
+    The values are ordered by integer keys that pack each value's float32 bits (ordered as integers
+    for non-negative floats) above its index; only the brightest eighth is sorted where it holds
+    the weight above the percentile (it runs for every trial of a calibrated sweep)."""
     L = np.moveaxis(np.asarray(radiance, dtype=float), axis, -1)
     w = np.ones_like(L) if weight is None else np.moveaxis(np.broadcast_to(weight, np.shape(radiance)), axis, -1)
-    w = np.where(L > 0, w, 0.0)
-    order = np.argsort(L, axis=-1)
-    Ls, ws = np.take_along_axis(L, order, -1), np.take_along_axis(w, order, -1)
-    cw = np.cumsum(ws, axis=-1)
-    total = cw[..., -1:]
-    k = np.sum(cw < EXPOSURE_PERCENTILE / 100.0 * total, axis=-1, keepdims=True)
-    ref = np.take_along_axis(Ls, np.minimum(k, L.shape[-1] - 1), -1)[..., 0]
-    return np.where(total[..., 0] > 0, ref, np.nan)
+    shape, M = L.shape[:-1], L.shape[-1]
+    L = np.maximum(L.reshape(-1, M), 0.0)
+    w = np.where(L > 0, w.reshape(-1, M), 0.0)
+    total = w.sum(axis=1)
+    above = (1.0 - EXPOSURE_PERCENTILE / 100.0) * total                  # the weight above the percentile
+    shift = max(1, (M - 1).bit_length())
+    key = (L.astype(np.float32).view(np.int32).astype(np.int64) << shift) | np.arange(M)
+    k = min(M, max(64, M // 8))
+    top = np.sort(np.partition(key, M - k, axis=1)[:, M - k:] if k < M else key, axis=1)[:, ::-1]
+    idx = top & ((1 << shift) - 1)                                        # brightest first
+    cw = np.cumsum(np.take_along_axis(w, idx, 1), axis=1)
+    short = cw[:, -1] <= above                                            # the percentile is below the top k
+    rows = np.arange(len(L))
+    # the smallest value whose weight at or above it exceeds `above` (the inverted CDF at the percentile)
+    i = np.minimum(np.sum(cw <= above[:, None], axis=1), idx.shape[1] - 1)
+    ref = L[rows, idx[rows, i]]
+    if short.any():                                                       # sort those rows in full
+        r = np.flatnonzero(short)
+        full = (np.sort(key[r], axis=1) & ((1 << shift) - 1))[:, ::-1]
+        cwf = np.cumsum(np.take_along_axis(w[r], full, 1), axis=1)
+        j = np.minimum(np.sum(cwf <= above[r, None], axis=1), M - 1)
+        ref[r] = L[r, full[np.arange(len(r)), j]]
+    return np.where(total > 0, ref, np.nan).reshape(shape)
 
 
 def brightness_bin(b: ArrayLike) -> np.ndarray:
@@ -97,23 +116,49 @@ def sample_references(R_CT: np.ndarray, c_T: np.ndarray, s_T: np.ndarray, f_px: 
     """Reference radiance ``(E, n)`` of each camera's image from the target's exposure sample: the
     sample points that face a camera (either side, in front of it; occlusion is not tested), weighted
     by their area in pixels, with the face radiance ignoring cast shadows.  ``R_CT (E, n, 3, 3)``,
-    ``c_T (E, n, 3)`` the cameras in the body frame, ``s_T (E, 3)`` the Sun, ``f_px (n,)``."""
-    S = exposure_sample(target)
-    mat = target.triangle_material[S.triangle_id]
-    X, nrm = S.X_T, S.normal_T
-    to_cam = c_T[:, :, None, :] - X                                       # (E, n, M, 3)
-    dist = np.linalg.norm(to_cam, axis=-1)
-    to_cam /= dist[..., None]
-    cos_v = np.einsum("enmk,mk->enm", to_cam, nrm)
-    side = np.where(cos_v >= 0, 1.0, -1.0)
-    cos_s = side * (s_T @ nrm.T)[:, None, :]
-    h = to_cam + s_T[:, None, None, :]
-    h /= np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-12)
-    n_dot_h = side * np.einsum("enmk,mk->enm", h, nrm)
-    z = -np.einsum("enk,enmk->enm", R_CT[:, :, 2, :], to_cam) * dist      # depth along the optical axis
-    L = face_radiance(mat, cos_s, n_dot_h, cos_s > 0, material_optics(target))
-    area_px = (S.area_m2 / len(X)) * np.abs(cos_v) * (f_px[None, :, None] / np.maximum(z, 1e-9)) ** 2
-    return reference_radiance(np.where(z > 0, L, 0.0), area_px)
+    ``c_T (E, n, 3)`` the cameras in the body frame, ``s_T (E, 3)`` the Sun, ``f_px (n,)``.
+
+    Every per-point quantity is a dot product, so the arrays are ``(E·n, M)`` matrix products
+    (no ``(E, n, M, 3)`` intermediates): this runs for every trial of a calibrated sweep."""
+    P = _sample_optics(target)
+    X, nrm = P["X"], P["normal"]                                          # float32: enough for a percentile
+    E, n = c_T.shape[:2]
+    c = c_T.reshape(-1, 3).astype(np.float32)                             # (K, 3), K = E n
+    s = np.repeat(s_T, n, axis=0).astype(np.float32)                      # (K, 3)
+    dist = np.sqrt(np.maximum(np.sum(c * c, 1)[:, None] - 2.0 * (c @ X.T) + P["X2"], 1e-12))
+    cos_v = (c @ nrm.T - P["Xn"]) / dist                                  # signed: normal · direction to the camera
+    abs_v = np.abs(cos_v)
+    sn = s @ nrm.T
+    cos_s = np.where(cos_v >= 0, sn, -sn)                                 # Sun on the camera-facing side
+    v_dot_s = (np.sum(c * s, 1)[:, None] - s @ X.T) / dist
+    n_dot_h = (abs_v + cos_s) / np.sqrt(np.maximum(2.0 + 2.0 * v_dot_s, 1e-12))
+    r3 = R_CT[:, :, 2, :].reshape(-1, 3).astype(np.float32)
+    z = r3 @ X.T - np.sum(r3 * c, 1)[:, None]                             # depth along the optical axis
+    L = P["albedo"] * cos_s + P["specular"] * np.maximum(n_dot_h, 0.0) ** P["shininess"]
+    L = np.where((cos_s > 0) & (z > 0), L, 0.0)
+    f = np.repeat(np.asarray(f_px, dtype=np.float32)[None], E, axis=0).reshape(-1, 1)
+    area_px = P["area_m2"] * abs_v * (f / np.maximum(z, 1e-6)) ** 2
+    return reference_radiance(L, area_px).reshape(E, n)
+
+
+def _optics(target) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    return target._cached("material_optics", lambda: material_optics(target))
+
+
+def _sample_optics(target) -> dict:
+    """The exposure sample's points, normals and the constants :func:`sample_references` needs per point
+    (the same :func:`face_radiance` terms, laid out per point; cached on the target)."""
+    def make() -> dict:
+        S = exposure_sample(target)
+        albedo, ks, ns = _optics(target)
+        m = target.triangle_material[S.triangle_id]
+        f32 = np.float32
+        return {"X": S.X_T.astype(f32), "normal": S.normal_T.astype(f32),
+                "X2": np.sum(S.X_T**2, 1)[None].astype(f32), "Xn": np.sum(S.X_T * S.normal_T, 1)[None].astype(f32),
+                "albedo": albedo[m][None].astype(f32), "specular": ks[m][None].astype(f32),
+                "shininess": ns[m][None].astype(f32), "area_m2": f32(S.area_m2 / len(S.X_T))}
+
+    return target._cached("exposure_sample_optics", make)
 
 
 def entry_brightness(g, target, feats, s_T: np.ndarray, f_px: np.ndarray, at: np.ndarray, e_i: np.ndarray,
@@ -130,6 +175,6 @@ def entry_brightness(g, target, feats, s_T: np.ndarray, f_px: np.ndarray, at: np
     h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
     n = feats.normal_T[f_i] * np.where(np.take(g.cos_view, at) >= 0, 1.0, -1.0)[:, None]
     L = face_radiance(target.triangle_material[feats.triangle_id[f_i]], cos_sun, np.sum(n * h, axis=1),
-                      cos_sun > 0, material_optics(target))
+                      cos_sun > 0, _optics(target))
     with np.errstate(invalid="ignore", divide="ignore"):
         return L / np.take(ref, en_i)
