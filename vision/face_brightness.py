@@ -114,7 +114,7 @@ def exposure_sample(target):
 
 def sample_references(R_CT: np.ndarray, c_T: np.ndarray, s_T: np.ndarray, f_px: np.ndarray, target) -> np.ndarray:
     """Reference radiance ``(E, n)`` of each camera's image from the target's exposure sample: the
-    sample points that face a camera (either side, in front of it; occlusion is not tested), weighted
+    sample points in front of a camera and not hidden by the target (tabulated per direction), weighted
     by their area in pixels, with the face radiance ignoring cast shadows.  ``R_CT (E, n, 3, 3)``,
     ``c_T (E, n, 3)`` the cameras in the body frame, ``s_T (E, 3)`` the Sun, ``f_px (n,)``.
 
@@ -138,11 +138,45 @@ def sample_references(R_CT: np.ndarray, c_T: np.ndarray, s_T: np.ndarray, f_px: 
     L = np.where((cos_s > 0) & (z > 0), L, 0.0)
     f = np.repeat(np.asarray(f_px, dtype=np.float32)[None], E, axis=0).reshape(-1, 1)
     area_px = P["area_m2"] * abs_v * (f / np.maximum(z, 1e-6)) ** 2
+    # the points the target hides from the camera: the table of the direction nearest the camera's
+    area_px *= P["visible"][np.argmax(c @ P["directions"].T, axis=1)]
     return reference_radiance(L, area_px).reshape(E, n)
 
 
 def _optics(target) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return target._cached("material_optics", lambda: material_optics(target))
+
+
+#: directions (spread evenly over the sphere, about 6.4° apart) at which the exposure sample's
+#: occlusion is tabulated once per target; a camera takes the table of the one nearest its own
+#: direction from the target's centre
+OCCLUSION_DIRECTIONS = 1000
+
+
+def _fibonacci_directions(n: int) -> np.ndarray:
+    """``n`` unit vectors spread evenly over the sphere (the Fibonacci lattice), ``(n, 3)``."""
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    phi = np.pi * (3.0 - np.sqrt(5.0)) * i
+    r = np.sqrt(1.0 - z * z)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def _visible_from(target, X: np.ndarray, normal: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """``(G, M)`` float32: 1 where point ``m`` is not hidden by the target towards direction ``g``
+    (a ray from its side facing that way, ray casting), 0 where hidden."""
+    import open3d as o3d
+
+    eps = max(1e-3, 1e-4 * target.radius_m)
+    out = np.empty((len(directions), len(X)), dtype=np.float32)
+    for g0 in range(0, len(directions), 100):
+        d = directions[g0:g0 + 100]                                       # (g, 3)
+        side = np.where(d @ normal.T >= 0, 1.0, -1.0)                     # (g, M)
+        org = X[None] + eps * side[..., None] * normal[None]
+        rays = np.concatenate([org, np.broadcast_to(d[:, None], org.shape)], axis=-1).reshape(-1, 6)
+        hit = target.scene.test_occlusions(o3d.core.Tensor(rays.astype(np.float32))).numpy()
+        out[g0:g0 + 100] = ~hit.reshape(len(d), len(X)).astype(bool)
+    return out
 
 
 def _sample_optics(target) -> dict:
@@ -153,7 +187,9 @@ def _sample_optics(target) -> dict:
         albedo, ks, ns = _optics(target)
         m = target.triangle_material[S.triangle_id]
         f32 = np.float32
-        return {"X": S.X_T.astype(f32), "normal": S.normal_T.astype(f32),
+        D = _fibonacci_directions(OCCLUSION_DIRECTIONS)
+        return {"directions": D.astype(f32), "visible": _visible_from(target, S.X_T, S.normal_T, D),
+                "X": S.X_T.astype(f32), "normal": S.normal_T.astype(f32),
                 "X2": np.sum(S.X_T**2, 1)[None].astype(f32), "Xn": np.sum(S.X_T * S.normal_T, 1)[None].astype(f32),
                 "albedo": albedo[m][None].astype(f32), "specular": ks[m][None].astype(f32),
                 "shininess": ns[m][None].astype(f32), "area_m2": f32(S.area_m2 / len(S.X_T))}
