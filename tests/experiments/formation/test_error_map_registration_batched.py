@@ -11,12 +11,14 @@ import pytest
 from experiments.config import load_config
 
 CONFIGS = Path(__file__).resolve().parents[3] / "experiments" / "configs"
+#: trials of the cell, 4 steps each
+TRIALS = 6
 
 
 @pytest.mark.parametrize(("registration", "noise_model", "distance_m"),
                          [("kabsch", "calibrated", 35.0), ("ransac", "calibrated", 60.0), ("ml", "fixed", 50.0)])
 def test_registered_steps_equal_step_by_step_registration(registration, noise_model, distance_m):
-    """3 trials × 4 steps: :func:`error_map._registered_steps` (``Registrar.register_pairs``) against
+    """6 trials × 4 steps: :func:`error_map._registered_steps` (``Registrar.register_pairs``) against
     ``Registrar.register`` step by step with each trial's own stream: the same increments, bit for bit
     (rotation, counts, inliers, failure reasons), the RANSAC draws included."""
     import experiments.scenarios.formation.error_map as em
@@ -33,10 +35,10 @@ def test_registered_steps_equal_step_by_step_registration(registration, noise_mo
     _, cfg = load_config(CONFIGS / "003_fig5_fig6.toml", overrides={
         "error_map.filter_runs": 0, "error_map.steps": 4, "observation.noise_model": noise_model,
         "formation.n_views": 3, "formation.distance_m": distance_m, "estimator.registration": registration})
-    streams = [child_seeds(ss, 3) for ss in cell_seed_sequences(cfg.seed, {}, 3)]
+    streams = [child_seeds(ss, 3) for ss in cell_seed_sequences(cfg.seed, {}, TRIALS)]
     dq = quat_from_rotvec(np.deg2rad(np.asarray(cfg.error_map.step_deg, dtype=float)))
-    qs = np.empty((3, 5, 4))
-    qs[:, 0] = em.random_attitudes(np.random.default_rng(11), 3)
+    qs = np.empty((TRIALS, 5, 4))
+    qs[:, 0] = em.random_attitudes(np.random.default_rng(11), TRIALS)
     for k in range(4):
         qs[:, k + 1] = quat_normalize(quat_multiply(dq, qs[:, k]))
     observer = make_observer(cfg, make_camera(cfg), load_target(cfg))
@@ -55,4 +57,6 @@ def test_registered_steps_equal_step_by_step_registration(registration, noise_mo
             np.testing.assert_array_equal(inc.inliers_prev, one.inliers_prev)
             np.testing.assert_array_equal(inc.inliers_curr, one.inliers_curr)
             n_ok += inc.ok
-    assert n_ok >= 6  # most steps register: the comparison is not between failures
+    # enough steps register that the comparison is not between failures (the paper's `kabsch` refuses
+    # about half the steps of calibrated data at these ranges, Experiment A's maps)
+    assert n_ok >= 8
