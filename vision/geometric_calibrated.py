@@ -384,7 +384,8 @@ def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f
     # the brightness of each entry if lit, relative to its image's auto-exposure, and its detection factor
     b_lit = None if cal.detection_brightness_factor is None else \
         entry_brightness(g, target, feats, _sun_T(q, sun), f_px, at, e_i, f_i, side_sun)
-    f_lit, f_dark = cal.brightness_factor_at(np.zeros(len(at)) if b_lit is None else b_lit), float(cal.brightness_factor_at(0.0))
+    f_lit = cal.brightness_factor_at(np.zeros(len(at)) if b_lit is None else b_lit, fp_v)
+    f_dark = cal.brightness_factor_at(np.zeros(len(at)), fp_v)
     with np.errstate(invalid="ignore", divide="ignore"):
         p_lit = (cal.density_at(bins, cal.sun_bin(side_sun, can_lit), mat) * f_lit - sub) / rho
         p_dark = (cal.density_at(bins, np.zeros(len(at), dtype=int), mat) * f_dark - sub) / rho
@@ -491,7 +492,7 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         S = cal.pair_survival_at(np.nan_to_num(fp_f[two], nan=1.0)[:, None, None], ang[None], phase_deg[k][None],
                                  None if mat_c is None else mat_c[two][:, None, None])
         if b_c is not None:             # the geometric mean of the factors of the pair's two views
-            fb = np.sqrt(cal.brightness_factor_at(b_c[k][:, two].T, survival=True))        # (two, n)
+            fb = np.sqrt(cal.survival_brightness_factor_at(b_c[k][:, two].T))             # (two, n)
             S = np.minimum(S * fb[:, :, None] * fb[:, None, :], 1.0)
         if feats.sites is not None:                                       # distinct sites match more often
             site = cand_id[two] < len(feats.sites)

@@ -52,7 +52,7 @@ def test_quick_calibration_writes_a_readable_file_with_its_command(tmp_path):
     # the expectation of the density tables sums to the keypoints (the tables hold the mean)
     np.testing.assert_array_equal(np.sum(t["brightness_keypoints"], axis=-1), np.sum(t["keypoints"], axis=(1, 2)))
     assert np.sum(t["brightness_expected_keypoints"]) > 0
-    assert cal.detection_brightness_factor.shape == cal.pair_survival_brightness_factor.shape == (9,)
+    assert cal.detection_brightness_factor.shape == (1, 9) and cal.pair_survival_brightness_factor.shape == (9,)
     # the triangulation σ² inflation step ran (one attitude, 10°) and says how it was made
     assert data["provenance"]["triangulation_nees"]["spec"]["attitudes"] == 1
     assert sum(map(sum, t["triangulation_nees"]["points"][0])) > 0

@@ -107,24 +107,33 @@ def _with_factor(data: dict, factor) -> SiftCalibration:
 
 
 def test_the_factor_is_keypoints_over_those_the_tables_expect(data):
-    """Σ keypoints / Σ expected per bin over the ranges; 1 where fewer than 20 are expected; no
+    """Per range and bin: keypoints / expected; where a range expects fewer than 20, the factor pooled
+    over the ranges, and 1 where that too is short; between the ranges linear in log footprint; no
     counts: no factor."""
     d = copy.deepcopy(data)
     t = d["targets"]["fy1"]
     B = len(BRIGHTNESS_EDGES) - 1
-    kp = np.tile(np.arange(B, dtype=float) * 10, (2, 1))
+    kp = np.stack([np.arange(B) * 10.0, np.arange(B) * 20.0])
     exp = np.full((2, B), 50.0)
     exp[:, 1] = 5.0                                 # 10 expected in all: factor 1
+    exp[0, 2] = 12.0                                # short at the first range only: the pooled factor
     t["brightness_keypoints"], t["brightness_expected_keypoints"] = kp.tolist(), exp.tolist()
-    f = SiftCalibration.from_dict(d, "fy1").detection_brightness_factor
-    want = kp.sum(0) / exp.sum(0)
-    want[1] = 1.0
-    np.testing.assert_allclose(f, want, rtol=1e-12)
+    cal = SiftCalibration.from_dict(d, "fy1")
+    want = kp / exp
+    want[:, 1] = 1.0
+    want[0, 2] = kp[:, 2].sum() / exp[:, 2].sum()
+    np.testing.assert_allclose(cal.detection_brightness_factor, want, rtol=1e-12)
+    fp0, fp1 = cal.footprint_m_per_px
+    b = np.full(3, 0.5)                             # the bin 0.4-0.56
+    i = int(brightness_bin(0.5))
+    mid = np.sqrt(fp0 * fp1)                        # halfway in log footprint
+    np.testing.assert_allclose(cal.brightness_factor_at(b, np.array([fp0 / 2, mid, 2 * fp1])),
+                               [want[0, i], 0.5 * (want[0, i] + want[1, i]), want[1, i]], rtol=1e-12)
     for k in ("brightness_keypoints", "brightness_expected_keypoints"):
         t.pop(k)
     cal = SiftCalibration.from_dict(d, "fy1")
     assert cal.detection_brightness_factor is None and cal.max_brightness_factor == 1.0
-    np.testing.assert_array_equal(cal.brightness_factor_at([0.0, 0.3]), [1.0, 1.0])
+    np.testing.assert_array_equal(cal.brightness_factor_at([0.0, 0.3], 0.02), [1.0, 1.0])
 
 
 def _detections(fy1, cal) -> np.ndarray:

@@ -163,9 +163,9 @@ def test_detection_on_the_visible_subset_equals_the_full_array_definition(fy1, s
         g.vis &= ~is_site | (sub.scale_m * np.abs(g.cos_view) / fp >= gc.MIN_FORESHORTENED_PX)
         fp_ok = np.where(g.vis, fp, 1.0)
         p_lit = (cal.density(fp_ok, g.cos_view, cal.sun_bin(side * g.cos_sun, can_lit), material)
-                 * cal.brightness_factor_at(b_lit) - rho_sub) / rho_F
+                 * cal.brightness_factor_at(b_lit, fp_ok) - rho_sub) / rho_F
         p_dark = (cal.density(fp_ok, g.cos_view, np.zeros(fp.shape, dtype=int), material)
-                  * cal.brightness_factor_at(0.0) - rho_sub) / rho_F
+                  * cal.brightness_factor_at(np.zeros(fp.shape), fp_ok) - rho_sub) / rho_F
     g.vis &= u < np.maximum(p_lit, p_dark)
     dark = _occlude(g, fy1, sub, _sun_T(q, sun), drop_shadowed=False)
     g.vis &= u < np.where(can_lit & ~dark[:, None, :], p_lit, p_dark)

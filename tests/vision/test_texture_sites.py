@@ -143,7 +143,7 @@ def test_the_measured_density_is_honoured_on_average(plate, distance_m):
         n_det.append(int(np.sum(vis[0, 0] & front[keep])))
     # 2 m × 2 m face; the plate is all the camera sees, evenly lit: its brightness is the exposure's
     # reference (relative brightness 1, vision.face_brightness)
-    expected = float(cal.density(fp, 1.0, cal.sun_bin(1.0, True)) * cal.brightness_factor_at(1.0)) * 4.0
+    expected = float(cal.density(fp, 1.0, cal.sun_bin(1.0, True)) * cal.brightness_factor_at(1.0, fp)) * 4.0
     assert np.mean(n_det) == pytest.approx(expected, rel=0.1)
 
 

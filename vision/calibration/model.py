@@ -131,16 +131,18 @@ def _material_factor(t: dict) -> np.ndarray:
 
 
 def _brightness_factor(t: dict) -> np.ndarray | None:
-    """Detection factor per relative-brightness bin (:mod:`vision.face_brightness`): keypoints over
-    those the density table and the material factors predict on the bin's surface, pooled over
-    ranges; 1 for a bin expected to hold fewer than ``_MIN_EXPECTED_CORRECT`` keypoints; None in
-    files without the counts."""
+    """Detection factor per calibrated range and relative-brightness bin ``(R, B)``
+    (:mod:`vision.face_brightness`): keypoints over those the density table and the material factors
+    predict on the bin's surface at that range; where fewer than ``_MIN_EXPECTED_CORRECT`` are
+    expected, the factor pooled over the ranges (1 if that too is short); None in files without the
+    counts."""
     if "brightness_expected_keypoints" not in t:
         return None
-    kp = np.asarray(t["brightness_keypoints"], dtype=float).sum(axis=0)
-    expected = np.asarray(t["brightness_expected_keypoints"], dtype=float).sum(axis=0)
+    kp = np.asarray(t["brightness_keypoints"], dtype=float)
+    expected = np.asarray(t["brightness_expected_keypoints"], dtype=float)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(expected >= _MIN_EXPECTED_CORRECT, kp / expected, 1.0)
+        pooled = np.where(expected.sum(0) >= _MIN_EXPECTED_CORRECT, kp.sum(0) / expected.sum(0), 1.0)
+        return np.where(expected >= _MIN_EXPECTED_CORRECT, kp / expected, pooled[None])
 
 
 def _bin_index(edges: np.ndarray, x: ArrayLike, side: str, lo: int, hi: int) -> np.ndarray:
@@ -229,11 +231,13 @@ class SiftCalibration:
     phase_edges_deg : ndarray (P + 1,)
     pair_survival_material_factor : ndarray (M,) or None
         The same per surface material of the keypoint (None in files without it).
-    detection_brightness_factor, pair_survival_brightness_factor : ndarray (B,) or None
-        Detection density in each relative-brightness bin (:data:`vision.face_brightness.BRIGHTNESS_EDGES`)
-        over what the density table and material factors give there, and cross-view survival by the
-        bin of the first camera's keypoint over the table's (None in files without them: no
-        brightness dependence).
+    detection_brightness_factor : ndarray (R, B) or None
+        Detection density at each calibrated range in each relative-brightness bin
+        (:data:`vision.face_brightness.BRIGHTNESS_EDGES`) over what the density table and material
+        factors give there (None in files without it: no brightness dependence).
+    pair_survival_brightness_factor : ndarray (B,) or None
+        Cross-view survival by the bin of the first camera's keypoint over the table's, pooled over
+        ranges and angles (None in files without it).
     track_persistence : ndarray (R,)
         Fraction of the tracks of two cameras at the first cross-view angle that are tracks of the
         same cameras again after the first epoch change (NaN where not measured).
@@ -484,12 +488,23 @@ class SiftCalibration:
         """log of the density table times each material's factor, ``(R, V, S, P)``."""
         return np.log(np.maximum(self.density_per_m2, 1e-9)[..., None] * self.material_factor[:, None, None, :])
 
-    def brightness_factor_at(self, brightness: ArrayLike, *, survival: bool = False) -> np.ndarray:
-        """Detection factor (``survival``: cross-view survival factor) of surfaces at this relative
-        brightness (:mod:`vision.face_brightness`; 1 without the table)."""
+    def brightness_factor_at(self, brightness: ArrayLike, footprint_m_per_px: ArrayLike) -> np.ndarray:
+        """Detection factor of surfaces at this relative brightness (:mod:`vision.face_brightness`)
+        and image scale (linear in log footprint between the calibrated ranges, held beyond them; 1
+        without the table)."""
         from vision.face_brightness import brightness_bin
 
-        f = self.pair_survival_brightness_factor if survival else self.detection_brightness_factor
+        f = self.detection_brightness_factor
+        if f is None:
+            return np.ones(np.broadcast_shapes(np.shape(brightness), np.shape(footprint_m_per_px)))
+        return self._by_range(f, footprint_m_per_px, brightness_bin(brightness))
+
+    def survival_brightness_factor_at(self, brightness: ArrayLike) -> np.ndarray:
+        """Cross-view survival factor of a keypoint at this relative brightness, pooled over ranges
+        and angles (1 without the table)."""
+        from vision.face_brightness import brightness_bin
+
+        f = self.pair_survival_brightness_factor
         return np.ones(np.shape(brightness)) if f is None else f[brightness_bin(brightness)]
 
     @property
