@@ -202,15 +202,24 @@ def entry_brightness(g, target, feats, s_T: np.ndarray, f_px: np.ndarray, at: np
     """Relative brightness, if lit, of the geometric mode's (epoch, camera, feature) entries at the
     flat indices ``at`` of ``g.vis`` (``vision.geometric._Geometry``; ``e_i``, ``f_i`` their epochs
     and features, ``cos_sun`` the Sun's incidence on their camera-facing side): their face radiance
-    over their image's :func:`sample_references`."""
+    over their image's :func:`sample_references`.
+
+    The half vector's cosine comes from dot products the geometry already has: ``n·v`` (its
+    ``cos_view``), ``n·s`` and ``v·s = (c·s − X·s) / |c − X|``, the distance from the depth and the
+    pixel's ray, so no per-entry vectors are formed."""
     ref = sample_references(g.R_CT, g.c_T, s_T, f_px, target).reshape(-1)       # (E n,)
-    en_i = at // g.vis.shape[2]
-    to_cam = g.c_T.reshape(-1, 3)[en_i] - feats.X_T[f_i]
-    to_cam /= np.linalg.norm(to_cam, axis=1, keepdims=True)
-    h = to_cam + s_T[e_i]
-    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
-    n = feats.normal_T[f_i] * np.where(np.take(g.cos_view, at) >= 0, 1.0, -1.0)[:, None]
-    L = face_radiance(target.triangle_material[feats.triangle_id[f_i]], cos_sun, np.sum(n * h, axis=1),
-                      cos_sun > 0, _optics(target))
+    E, n, N = g.vis.shape
+    en_i = at // N
+    cam = en_i % n
+    uv = g.uv.reshape(-1, 2)[at]
+    x = (uv[:, 0] - g.K[cam, 0, 2]) / g.K[cam, 0, 0]
+    y = (uv[:, 1] - g.K[cam, 1, 2]) / g.K[cam, 1, 1]
+    dist = np.take(g.z, at) * np.sqrt(1.0 + x * x + y * y)
+    c_dot_s = np.einsum("eni,ei->en", g.c_T, s_T).reshape(-1)[en_i]
+    X_dot_s = np.take(s_T @ feats.X_T.T, e_i * N + f_i)
+    v_dot_s = (c_dot_s - X_dot_s) / dist
+    n_dot_h = (np.abs(np.take(g.cos_view, at)) + cos_sun) / np.sqrt(np.maximum(2.0 + 2.0 * v_dot_s, 1e-12))
+    L = face_radiance(target.triangle_material[feats.triangle_id[f_i]], cos_sun, n_dot_h, cos_sun > 0,
+                      _optics(target))
     with np.errstate(invalid="ignore", divide="ignore"):
         return L / np.take(ref, en_i)
