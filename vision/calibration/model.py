@@ -131,11 +131,9 @@ def _material_factor(t: dict) -> np.ndarray:
 
 
 def _brightness_factor(t: dict) -> np.ndarray | None:
-    """Detection factor per calibrated range and relative-brightness bin ``(R, B)``
-    (:mod:`vision.face_brightness`): keypoints over those the density table and the material factors
-    predict on the bin's surface at that range; where fewer than ``_MIN_EXPECTED_CORRECT`` are
-    expected, the factor pooled over the ranges (1 if that too is short); None in files without the
-    counts."""
+    """Detection factor ``(R, B)`` per range and brightness bin (:mod:`vision.face_brightness`): keypoints
+    over those the density table and material factors predict there; the factor pooled over ranges
+    where fewer than ``_MIN_EXPECTED_CORRECT`` are expected (1 if still short); None without counts."""
     if "brightness_expected_keypoints" not in t:
         return None
     kp = np.asarray(t["brightness_keypoints"], dtype=float)
@@ -232,12 +230,10 @@ class SiftCalibration:
     pair_survival_material_factor : ndarray (M,) or None
         The same per surface material of the keypoint (None in files without it).
     detection_brightness_factor : ndarray (R, B) or None
-        Detection density at each calibrated range in each relative-brightness bin
-        (:data:`vision.face_brightness.BRIGHTNESS_EDGES`) over what the density table and material
-        factors give there (None in files without it: no brightness dependence).
+        Detection density per range and relative-brightness bin (:data:`vision.face_brightness.BRIGHTNESS_EDGES`)
+        over what the density table and material factors give (None in files without it).
     pair_survival_brightness_factor : ndarray (B,) or None
-        Cross-view survival by the bin of the first camera's keypoint over the table's, pooled over
-        ranges and angles (None in files without it).
+        Cross-view survival by the first keypoint's bin over the table's, pooled (None without it).
     track_persistence : ndarray (R,)
         Fraction of the tracks of two cameras at the first cross-view angle that are tracks of the
         same cameras again after the first epoch change (NaN where not measured).
@@ -500,8 +496,7 @@ class SiftCalibration:
         return self._by_range(f, footprint_m_per_px, brightness_bin(brightness))
 
     def survival_brightness_factor_at(self, brightness: ArrayLike) -> np.ndarray:
-        """Cross-view survival factor of a keypoint at this relative brightness, pooled over ranges
-        and angles (1 without the table)."""
+        """Cross-view survival factor of a keypoint at this relative brightness (1 without the table)."""
         from vision.face_brightness import brightness_bin
 
         f = self.pair_survival_brightness_factor
