@@ -382,8 +382,9 @@ def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f
     rho = rho_F if np.ndim(rho_F) == 0 else rho_F[f_i]
     bins = cal.density_bins(fp_v, cv_v)
     # the brightness of each entry if lit, relative to its image's auto-exposure, and its detection factor
+    s_T = _sun_T(q, sun)
     b_lit = None if cal.detection_brightness_factor is None else \
-        entry_brightness(g, target, feats, _sun_T(q, sun), f_px, at, e_i, f_i, side_sun)
+        entry_brightness(g, target, feats, s_T, f_px, at, e_i, f_i, side_sun)
     f_lit = cal.brightness_factor_at(np.zeros(len(at)) if b_lit is None else b_lit, fp_v)
     f_dark = cal.brightness_factor_at(np.zeros(len(at)), fp_v)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -395,7 +396,7 @@ def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f
     vis = np.zeros(E * n * N, dtype=bool)
     vis[at] = det
     g.vis = vis.reshape(E, n, N)
-    dark = _occlude(g, target, feats, _sun_T(q, sun), drop_shadowed=False)     # (E, N)
+    dark = _occlude(g, target, feats, s_T, drop_shadowed=False)                # (E, N)
     lit = can_lit & ~np.take(dark, e_i * N + f_i)
     vis[at] &= u < np.where(lit, p_lit, p_dark)
     if b_lit is not None:
