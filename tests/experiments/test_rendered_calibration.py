@@ -3,6 +3,7 @@
 import json
 
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from coobs.cli import app
@@ -47,6 +48,15 @@ def test_quick_calibration_writes_a_readable_file_with_its_command(tmp_path):
         # each keypoint on the target has one brightness bin as it has one material
         np.testing.assert_array_equal(np.sum(cv[f"brightness_{k}"], axis=-1), np.sum(cv[f"material_{k}"], axis=-1))
     assert np.all(np.asarray(cv["phase_correct"]) <= np.asarray(cv["phase_redetected"]))
+    # the joint counts split the correct matches of the target's keypoints as the material counts do, and
+    # their expectation is the table's survival times the matchable keypoints (one range: one table row)
+    joint_c = np.asarray(cv["joint_correct"])
+    assert joint_c.shape == (6, 7, 9) and joint_c.sum() == np.sum(cv["material_correct"])
+    np.testing.assert_array_equal(joint_c.sum(axis=(0, 2)), np.sum(cv["material_correct"], axis=(0, 1)))
+    np.testing.assert_array_equal(joint_c.sum(axis=(0, 1)), np.sum(cv["brightness_correct"], axis=(0, 1)))
+    S = np.asarray(cal.pair_survival)
+    assert np.sum(cv["joint_expected"]) == pytest.approx(float(np.sum(np.asarray(cv["material_matchable"]).sum(-1) * S)),
+                                                         rel=1e-4)
     assert cal.pair_survival_phase_factor.shape == (6,) and cal.pair_survival_material_factor.shape == (7,)
     # the detection counts per relative-brightness bin: every keypoint on the target in one bin, and
     # the expectation of the density tables sums to the keypoints (the tables hold the mean)

@@ -22,9 +22,12 @@ def data():
 
 
 def _with_phase_counts(data: dict, correct_per_phase, matchable_per_phase) -> dict:
-    """fy1 with phase counts spread evenly over its ranges and angles (R, A, P)."""
+    """fy1 with phase counts spread evenly over its ranges and angles (R, A, P), and without the joint
+    counts (which would give the factors instead)."""
     d = copy.deepcopy(data)
     cv = d["targets"]["fy1"]["cross_view"]
+    cv.pop("joint_expected", None)
+    cv.pop("joint_correct", None)
     R, A = np.asarray(cv["survival"], dtype=float).shape
     cv["phase_correct"] = np.broadcast_to(np.asarray(correct_per_phase, float) / (R * A), (R, A, 6)).tolist()
     cv["phase_matchable"] = np.broadcast_to(np.asarray(matchable_per_phase, float) / (R * A), (R, A, 6)).tolist()
@@ -47,7 +50,8 @@ def test_phase_factor_is_correct_matches_over_those_the_table_expects(data):
     assert np.sum(cal.pair_survival_phase_factor[ok] * expected[ok]) == pytest.approx(correct[ok].sum())
 
 
-_COUNTS = ("phase_correct", "phase_matchable", "phase_redetected", "material_correct", "material_matchable")
+_COUNTS = ("phase_correct", "phase_matchable", "phase_redetected", "material_correct", "material_matchable",
+           "joint_expected", "joint_correct")
 
 
 def _without_counts(data: dict) -> dict:

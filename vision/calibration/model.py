@@ -24,6 +24,12 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
+from vision.calibration.survival_factors import MIN_EXPECTED_CORRECT as _MIN_EXPECTED_CORRECT
+from vision.calibration.survival_factors import survival_factors
+from vision.calibration.tables import CalibrationTableEmpty
+from vision.calibration.tables import fill_nearest as _fill_nearest
+from vision.calibration.tables import table as _table
+
 __all__ = ["COS_VIEW_EDGES", "PHASE_EDGES_DEG", "SIZE_EDGES_PX", "SUN_BIN_EDGES", "TRACK_CLASSES", "CalibrationTableEmpty",
            "SiftCalibration", "calibration_path", "load_calibration", "track_class"]
 
@@ -44,9 +50,6 @@ _MIN_CELL_AREA_M2 = 2.0
 _MIN_SIGMA_PX = 0.02
 #: pairs a size bin needs at one range to use that range's own σ
 _MIN_PAIRS_PER_BIN = 20
-#: correct matches a Sun phase bin or a material must be expected to have (under no such effect) to get
-#: its own survival factor
-_MIN_EXPECTED_CORRECT = 20.0
 
 
 def calibration_path() -> Path:
@@ -54,57 +57,9 @@ def calibration_path() -> Path:
     return Path(__file__).with_name("rendered_sift.json")
 
 
-class CalibrationTableEmpty(ValueError):
-    """A calibration table without a single measured value (too few samples to fill it)."""
-
-
-def _fill_nearest(values: list) -> np.ndarray:
-    """Bins without data (None/NaN) take the value of the nearest bin with data."""
-    v = np.array([np.nan if x is None else float(x) for x in values])
-    ok = np.nonzero(np.isfinite(v))[0]
-    if ok.size == 0:
-        raise CalibrationTableEmpty("calibration: a table has no measured value")
-    idx = np.arange(len(v))
-    near = ok[np.argmin(np.abs(idx[:, None] - ok[None, :]), axis=1)]
-    return v[near]
-
-
-def _table(rows: list) -> np.ndarray:
-    return np.stack([_fill_nearest(r) for r in rows])
-
-
 def _conditional(num: list, den: list) -> list:
     """``num / den`` per range and column (None where den is 0), at most 1."""
     return [[None if d <= 0 else min(1.0, n / d) for n, d in zip(rn, rd, strict=True)] for rn, rd in zip(num, den, strict=True)]
-
-
-def _survival_factor(t: dict, by: str) -> np.ndarray | None:
-    """Cross-view survival per class ``by`` (``"phase"``: Sun phase bin, ``"material"``: the keypoint's
-    surface material) over the survival its pairs' range and angle give, pooled over ranges and
-    angles: correct matches of a class over those its matchable keypoints would have at the table's
-    survival (mean 1 over the calibration's pairs by construction).  None in files without the
-    counts; NaN for a class expected to have fewer than ``_MIN_EXPECTED_CORRECT`` correct matches."""
-    cv = t["cross_view"]
-    if f"{by}_correct" not in cv:
-        return None
-    correct = np.asarray(cv[f"{by}_correct"], dtype=float)          # (R, A, classes)
-    matchable = np.asarray(cv[f"{by}_matchable"], dtype=float)
-    expected = np.sum(matchable * _table(cv["survival"])[:, :, None], axis=(0, 1))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(expected >= _MIN_EXPECTED_CORRECT, correct.sum(axis=(0, 1)) / expected, np.nan)
-
-
-def _phase_factor(t: dict) -> np.ndarray | None:
-    """The survival factor per Sun phase bin; a bin with too few matches takes the nearest bin's."""
-    g = _survival_factor(t, "phase")
-    return None if g is None else _fill_nearest(list(g))
-
-
-def _class_survival_factor(t: dict, by: str) -> np.ndarray | None:
-    """The survival factor per surface material or relative-brightness bin (``by``); 1 for a class
-    with too few matches."""
-    g = _survival_factor(t, by)
-    return None if g is None else np.where(np.isfinite(g), g, 1.0)
 
 
 def _sigma_by_range(t: dict) -> np.ndarray:
@@ -324,9 +279,7 @@ class SiftCalibration:
             three_over_two_ratio=(float(sum(t["cross_view"]["three_view_tracks"]))
                                   / max(1.0, float(sum(t["cross_view"]["two_view_tracks"])))),
             provenance=dict(data.get("provenance", {})),
-            pair_survival_phase_factor=_phase_factor(t),
-            pair_survival_material_factor=_class_survival_factor(t, "material"),
-            pair_survival_brightness_factor=_class_survival_factor(t, "brightness"),
+            **{f"pair_survival_{by}_factor": f for by, f in survival_factors(t["cross_view"]).items()},
             phase_edges_deg=np.asarray(data.get("phase_edges_deg", PHASE_EDGES_DEG), dtype=float),
             **_inflation(t),
         )
