@@ -8,6 +8,7 @@ rendered mode's σ per keypoint read), then prints the headline figures per targ
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import typer
@@ -22,6 +23,16 @@ __all__ = ["calibrate"]
 
 def _fmt(v: object, spec: str = ".3g") -> str:
     return "-" if v is None else format(v, spec)
+
+
+_NUMBER_LIST = re.compile(r"\[(?:\s*(?:-?[0-9.eE+-]+|null),)*\s*(?:-?[0-9.eE+-]+|null)\s*\]")
+
+
+def _write(path: Path, data: dict) -> None:
+    """The calibration as indented JSON with every innermost list of numbers on one line."""
+    text = _NUMBER_LIST.sub(lambda m: "[" + ", ".join(x.strip() for x in m.group(0)[1:-1].split(",")) + "]",
+                            json.dumps(data, indent=1))
+    path.write_text(text + "\n", encoding="utf-8")
 
 
 def _nees_only(path: Path, base: CalibrationSpec, attitudes: int | None, out: Path | None) -> None:
@@ -48,7 +59,7 @@ def _nees_only(path: Path, base: CalibrationSpec, attitudes: int | None, out: Pa
         data = add_triangulation_nees(data, spec, command=command, progress=step)
     finally:
         stop()
-    path.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+    _write(path, data)
     table = Table(title=f"triangulation σ² inflation ({data['provenance']['triangulation_nees']['wall_s']} s) -> {path}")
     for col in ("target", "range [m]", "angle [deg]", *(f"{c}: inflation (points)" for c in
                                                        data["targets"][next(iter(data["targets"]))]
@@ -122,7 +133,7 @@ def calibrate(
     finally:
         stop()
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+    _write(path, data)
     table = Table(title=f"rendered SIFT calibration ({data['provenance']['wall_s']} s) -> {path}")
     for col in ("target", "range [m]", "sigma small/large [px]", "keypoints [1/m^2]",
                 "pair survival (first angle)", "false matches", "assoc. survival (first/last change)",

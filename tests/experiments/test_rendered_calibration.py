@@ -51,9 +51,9 @@ def test_quick_calibration_writes_a_readable_file_with_its_command(tmp_path):
     # the joint counts split the correct matches of the target's keypoints as the material counts do, and
     # their expectation is the table's survival times the matchable keypoints (one range: one table row)
     joint_c = np.asarray(cv["joint_correct"])
-    assert joint_c.shape == (6, 7, 9) and joint_c.sum() == np.sum(cv["material_correct"])
-    np.testing.assert_array_equal(joint_c.sum(axis=(0, 2)), np.sum(cv["material_correct"], axis=(0, 1)))
-    np.testing.assert_array_equal(joint_c.sum(axis=(0, 1)), np.sum(cv["brightness_correct"], axis=(0, 1)))
+    assert joint_c.shape == (6, 7, 9, 5) and joint_c.sum() == np.sum(cv["material_correct"])
+    np.testing.assert_array_equal(joint_c.sum(axis=(0, 2, 3)), np.sum(cv["material_correct"], axis=(0, 1)))
+    np.testing.assert_array_equal(joint_c.sum(axis=(0, 1, 3)), np.sum(cv["brightness_correct"], axis=(0, 1)))
     S = np.asarray(cal.pair_survival)
     assert np.sum(cv["joint_expected"]) == pytest.approx(float(np.sum(np.asarray(cv["material_matchable"]).sum(-1) * S)),
                                                          rel=1e-4)

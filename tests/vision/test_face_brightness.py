@@ -1,5 +1,5 @@
 """A face's brightness relative to the auto-exposure, and the detection factor it carries
-(vision.face_brightness, vision.calibration, vision.geometric_calibrated; issue 16)."""
+(vision.face_brightness, vision.calibration, vision.calibrated_detection; issue 16)."""
 
 import copy
 import json
@@ -138,7 +138,7 @@ def test_the_factor_is_keypoints_over_those_the_tables_expect(data):
 
 def _detections(fy1, cal) -> np.ndarray:
     """Detections (E, n, N) of one epoch of two cameras at 40 m, 10°."""
-    from vision.geometric_calibrated import detections
+    from vision.calibrated_detection import detections
 
     T = two_camera_poses(40.0, 10.0)
     feats = surface_features(fy1, n_features=calibrated_feature_count(CAM, fy1, T, cal), surface="outer")

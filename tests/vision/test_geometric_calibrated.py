@@ -121,7 +121,7 @@ def test_detection_on_the_visible_subset_equals_the_full_array_definition(fy1, s
     times the factor of the relative brightness, vision.face_brightness)
     equal the definition evaluated on every (epoch, camera, feature), bit for bit: same draws, same
     rays cast; the features left out by the bounds of their Sun bins are detected nowhere."""
-    import vision.geometric_calibrated as gc
+    import vision.calibrated_detection as gc
     from vision.face_brightness import face_radiance, material_optics, sample_references
     from vision.geometric import _geometry, _occlude, _sun_T
     from vision.texture_sites import footprint_level, site_features
@@ -136,7 +136,7 @@ def test_detection_on_the_visible_subset_equals_the_full_array_definition(fy1, s
         feats = site_features(fy1, footprint_level(40.0 / CAM.K[0, 0]), fillers=feats)
     keep, vis = gc.detections([CAM] * 3, TT, fy1, q, sun, fsun, feats, np.random.default_rng(2), calibration=cal)
     # the definition, on full arrays
-    st = gc._setup([CAM] * 3, TT[None], fy1, feats, cal, [np.random.default_rng(2)])
+    st = gc.setup_detection([CAM] * 3, TT[None], fy1, feats, cal, [np.random.default_rng(2)])
     keep_all = np.flatnonzero(st["u_det"][0] < st["bound"])       # the trial's features, before the Sun bound
     assert np.isin(keep, keep_all).all() and len(keep) < len(keep_all)
     keep, vis = keep_all, _scatter(vis, np.searchsorted(keep_all, keep), len(keep_all))

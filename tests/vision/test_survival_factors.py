@@ -1,9 +1,13 @@
-"""Joint cross-view survival factors of Sun phase, material and brightness (vision.calibration.survival_factors)."""
+"""Joint cross-view survival factors of Sun phase, material, brightness and view angle (vision.calibration.survival_factors)."""
 
 import numpy as np
 import pytest
 
-from vision.calibration.survival_factors import MIN_EXPECTED_CORRECT, fit_main_effects, survival_factors
+from vision.calibration.survival_factors import (
+    MIN_EXPECTED_CORRECT,
+    fit_main_effects,
+    survival_factors,
+)
 
 
 def _product(f):
@@ -60,18 +64,20 @@ def _cv(expected, correct):
 
 def test_sparse_classes_get_no_factor_of_their_own():
     """A phase bin expected to have fewer than MIN_EXPECTED_CORRECT correct matches takes its nearest
-    neighbour's factor, a material or brightness class 1."""
-    expected = np.full((6, 3, 4), 10.0)
-    expected[5] = 0.1                       # phase bin 5: 1.2 expected in all
-    expected[:, 2] = 0.1                    # material 2
-    expected[:, :, 3] = 0.05                # brightness bin 3
+    neighbour's factor, a material, brightness or view class 1."""
+    expected = np.full((6, 3, 4, 5), 2.0)
+    expected[5] = 0.02                      # phase bin 5
+    expected[:, 2] = 0.02                   # material 2
+    expected[:, :, 3] = 0.01                # brightness bin 3
+    expected[:, :, :, 0] = 0.01             # view bin 0
     assert expected[5].sum() < MIN_EXPECTED_CORRECT and expected[:, 2].sum() < MIN_EXPECTED_CORRECT
+    assert expected[:, :, :, 0].sum() < MIN_EXPECTED_CORRECT <= expected[:, :, :, 1].sum()
     rng = np.random.default_rng(2)
     correct = rng.poisson(expected * 0.8)
     f = survival_factors(_cv(expected, correct))
     assert f["phase"][5] == f["phase"][4]
-    assert f["material"][2] == 1.0 and f["brightness"][3] == 1.0
-    assert np.all(np.isfinite(f["phase"])) and f["phase"].shape == (6,)
+    assert f["material"][2] == 1.0 and f["brightness"][3] == 1.0 and f["view"][0] == 1.0
+    assert all(np.all(np.isfinite(f[k])) for k in f) and f["phase"].shape == (6,) and f["view"].shape == (5,)
 
 
 def test_a_file_without_joint_counts_keeps_the_marginal_factors():
@@ -79,7 +85,7 @@ def test_a_file_without_joint_counts_keeps_the_marginal_factors():
     cv = {"survival": [[0.5]], "material_matchable": [[[400.0, 100.0]]], "material_correct": [[[100.0, 40.0]]]}
     f = survival_factors(cv)
     np.testing.assert_allclose(f["material"], [100.0 / 200.0, 40.0 / 50.0])
-    assert f["phase"] is None and f["brightness"] is None
+    assert f["phase"] is None and f["brightness"] is None and f["view"] is None
 
 
 def test_mismatched_tables_are_refused_naming_them():

@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
+from vision.calibrated_detection import detections
 from vision.calibration import load_calibration
 from vision.camera import PinholeCamera, look_at
 from vision.geometric import surface_features
-from vision.geometric_calibrated import detections, filler_feature_count
+from vision.geometric_calibrated import filler_feature_count
 from vision.target import Material
 from vision.target.builder import MeshBuilder
 from vision.texture_sites import footprint_level, site_features, texture_image, texture_sites

@@ -189,6 +189,9 @@ class SiftCalibration:
         over what the density table and material factors give (None in files without it).
     pair_survival_brightness_factor : ndarray (B,) or None
         Cross-view survival by the first keypoint's bin over the table's, pooled (None without it).
+    pair_survival_view_factor : ndarray (V,) or None
+        The same by the keypoint's view-angle bin (only with the joint counts,
+        :mod:`vision.calibration.survival_factors`).
     track_persistence : ndarray (R,)
         Fraction of the tracks of two cameras at the first cross-view angle that are tracks of the
         same cameras again after the first epoch change (NaN where not measured).
@@ -237,6 +240,7 @@ class SiftCalibration:
     pair_survival_material_factor: np.ndarray | None = None
     detection_brightness_factor: np.ndarray | None = None
     pair_survival_brightness_factor: np.ndarray | None = None
+    pair_survival_view_factor: np.ndarray | None = None
 
     @classmethod
     def from_dict(cls, data: dict, target: str) -> SiftCalibration:
@@ -454,6 +458,11 @@ class SiftCalibration:
 
         f = self.pair_survival_brightness_factor
         return np.ones(np.shape(brightness)) if f is None else f[brightness_bin(brightness)]
+
+    def survival_view_factor_at(self, cos_view: ArrayLike) -> np.ndarray:
+        """Cross-view survival factor of a keypoint on a surface at this (signed) view-angle cosine (1 without the table)."""
+        f = self.pair_survival_view_factor
+        return np.ones(np.shape(cos_view)) if f is None else f[self.view_bin(cos_view)]
 
     @property
     def max_brightness_factor(self) -> float:

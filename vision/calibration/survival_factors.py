@@ -1,8 +1,10 @@
-"""Cross-view survival factors of a keypoint's Sun phase, surface material and relative brightness.
+"""Cross-view survival factors of a keypoint's Sun phase, surface material, relative brightness and view angle.
 
 The calibration measures, for every cross-view pair, the keypoints of the first view the second
 camera sees (*matchable*) and those matched correctly (*correct*), per Sun phase bin of the pair, per
-surface material and per relative-brightness bin of the keypoint (:mod:`vision.face_brightness`).
+surface material and per relative-brightness bin of the keypoint (:mod:`vision.face_brightness`),
+and jointly over those and the keypoint's view-angle bin (the angle between its surface normal and
+the direction to the camera, :data:`vision.calibration.COS_VIEW_EDGES`).
 The geometric mode multiplies the survival of the pair's range and angle, ``S(z/f, angle)``, by one
 factor per class of each kind.
 
@@ -11,11 +13,13 @@ factor per class of each kind.
   three of them counts an effect twice where the kinds are correlated (the brightest keypoints lie
   mostly on one material and at one phase, so a material's factor also carries part of the
   brightness effect, and the other way round).
-- **Joint factors** (files with the counts per (phase, material, brightness) class,
+- **Joint factors** (files with the counts per (phase, material, brightness, view) class,
   ``cross_view.joint_expected`` and ``joint_correct``): the main-effects Poisson model
-  ``correct ~ Poisson(expected · f_phase · f_material · f_brightness)`` fitted by iterative
+  ``correct ~ Poisson(expected · f_phase · f_material · f_brightness · f_view)`` fitted by iterative
   proportional fitting, its maximum-likelihood solution: the product of the three factors
-  reproduces every kind's measured correct matches at once.
+  reproduces every kind's measured correct matches at once.  Keypoints seen at grazing view (mostly
+  on silhouettes and the edges of faces, where the surface point under a keypoint changes with the
+  viewpoint) survive far less than those seen face-on: only the joint counts have the view factor.
 
 A class expected to have fewer than :data:`MIN_EXPECTED_CORRECT` correct matches gets no factor of
 its own: a phase bin takes the nearest bin's, a material or brightness class 1.
@@ -33,7 +37,7 @@ __all__ = ["MIN_EXPECTED_CORRECT", "fit_main_effects", "survival_factors"]
 #: such effect) to get its own survival factor
 MIN_EXPECTED_CORRECT = 20.0
 #: the kinds of class, in the order of the joint counts' axes
-KINDS = ("phase", "material", "brightness")
+KINDS = ("phase", "material", "brightness", "view")
 
 
 def fit_main_effects(expected: np.ndarray, observed: np.ndarray, *, iterations: int = 500,
@@ -87,20 +91,20 @@ def _marginal(cv: dict, by: str) -> np.ndarray | None:
 
 def _joint(cv: dict) -> dict[str, np.ndarray]:
     """The kinds' joint factors (module docstring); NaN where too few correct matches are expected."""
-    expected = np.asarray(cv["joint_expected"], dtype=float)        # (phase, material, brightness)
+    expected = np.asarray(cv["joint_expected"], dtype=float)        # (phase, material, brightness, view)
     f = fit_main_effects(expected, np.asarray(cv["joint_correct"], dtype=float))
     out = {}
     for k, by in enumerate(KINDS):
-        e_k = expected.sum(axis=tuple(a for a in range(3) if a != k))
+        e_k = expected.sum(axis=tuple(a for a in range(len(KINDS)) if a != k))
         out[by] = np.where(e_k >= MIN_EXPECTED_CORRECT, f[k], np.nan)
     return out
 
 
 def survival_factors(cv: dict) -> dict[str, np.ndarray | None]:
-    """``{"phase", "material", "brightness"}`` → factor per class (None where the file has no counts of
+    """``{"phase", "material", "brightness", "view"}`` → factor per class (None where the file has no counts of
     that kind) from a target's ``cross_view`` section: joint where it has the joint counts, else
     marginal; gaps filled (module docstring)."""
-    raw = _joint(cv) if "joint_correct" in cv else {by: _marginal(cv, by) for by in KINDS}
+    raw = _joint(cv) if "joint_correct" in cv else {by: _marginal(cv, by) for by in KINDS[:3]} | {"view": None}
     out: dict[str, np.ndarray | None] = {}
     for by, g in raw.items():
         if g is None:
