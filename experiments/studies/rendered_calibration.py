@@ -17,7 +17,7 @@ observation mode does (:func:`vision.render.render`, :func:`vision.rendered.fore
   are kept per Sun phase bin of the pair (the Sun's angle from the pair's mean line of sight), with
   the keypoints the second camera detects again within ``truth_tol_px`` of their surface point, and
   per surface material and relative brightness of A's keypoint, and jointly per (phase, material,
-  brightness) (:mod:`vision.calibration.survival_factors`);
+  brightness, view angle) (:mod:`vision.calibration.survival_factors`);
 * **keypoint localisation σ per SIFT size**: for correct matches, the residual between B's keypoint
   and the projection of the surface point under A's keypoint has variance σ²(size_A) + σ²(size_B)
   per axis; σ² per size bin is the non-negative least-squares solution over all matches;
@@ -181,10 +181,10 @@ def _count_materials(counts: np.ndarray, material: np.ndarray) -> None:
     counts += np.bincount(material[material >= 0], minlength=len(counts))[: len(counts)]
 
 
-def _count_joint(counts: np.ndarray, phase_bin: int, material: np.ndarray, brightness_bin: np.ndarray) -> None:
-    """Add keypoints to ``counts (phase, material, brightness)`` at the pair's phase bin (as :func:`_count_materials`)."""
+def _count_joint(counts: np.ndarray, phase_bin: int, material: np.ndarray, *bins: np.ndarray) -> None:
+    """Add keypoints to ``counts (phase, material, brightness, view)`` at the pair's phase bin (as :func:`_count_materials`)."""
     on = material >= 0
-    np.add.at(counts[phase_bin], (material[on], brightness_bin[on]), 1)
+    np.add.at(counts[phase_bin], (material[on], *(b[on] for b in bins)), 1)
 
 
 def _seen_in(r: RenderResult, q_HT: np.ndarray, X_T: np.ndarray) -> np.ndarray:
@@ -272,8 +272,8 @@ class _Tally:
         self.cv_material = {k: np.zeros((a, n_materials)) for k in ("matchable", "correct")}
         # and per relative-brightness bin of A's keypoint
         self.cv_brightness = {k: np.zeros((a, len(BRIGHTNESS_EDGES) - 1), dtype=np.int64) for k in ("matchable", "correct")}
-        # and jointly per (Sun phase bin, material, relative-brightness bin): the joint survival factors
-        self.cv_joint = {k: np.zeros((a, len(PHASE_EDGES_DEG) - 1, n_materials, len(BRIGHTNESS_EDGES) - 1),
+        # and jointly per (Sun phase, material, relative brightness, view angle): the joint survival factors
+        self.cv_joint = {k: np.zeros((a, len(PHASE_EDGES_DEG) - 1, n_materials, len(BRIGHTNESS_EDGES) - 1, nv),
                                      dtype=np.int64) for k in ("matchable", "correct")}
         self.ep = {k: np.zeros(d) for k in ("tracks_visible", "redetected", "associations", "correct")}
         self.pair_bins: list[np.ndarray] = []   # (k, 2) size bins of A and B
@@ -327,6 +327,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
     t.phase_kp[pb] += hit.sum()
     kp_mat = np.where(hit, mat[np.maximum(on, 0)], -1)       # material under each keypoint (-1: off the target)
     kp_bb = np.where(hit, bb[np.maximum(on, 0)], -1)         # and its relative-brightness bin
+    kp_vb = np.where(hit, vb[np.maximum(on, 0)], -1)         # and its view-angle bin
     if len(kA) < 2:
         return
     XA = _body_points(rA, target, q, kA.uv_px)
@@ -349,7 +350,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
         t.cv_phase["redetected"][a, pp] += _redetected(_project(rB, q, XA[seenB])[0], kB.uv_px, spec.truth_tol_px)
         _count_materials(t.cv_material["matchable"][a], kp_mat[seenB])
         _count_materials(t.cv_brightness["matchable"][a], kp_bb[seenB])
-        _count_joint(t.cv_joint["matchable"][a], pp, kp_mat[seenB], kp_bb[seenB])
+        _count_joint(t.cv_joint["matchable"][a], pp, kp_mat[seenB], kp_bb[seenB], kp_vb[seenB])
         F = fundamental_from_poses(cam.K, T_A, cam.K, T_B)
         m = match_pair(kA, kB, ratio=spec.ratio, F_AB=F, epipolar_tol_px=spec.epipolar_tol_px)
         if len(m) == 0:
@@ -361,7 +362,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
         t.cv_phase["correct"][a, pp] += ok.sum()
         _count_materials(t.cv_material["correct"][a], kp_mat[m[ok, 0]])
         _count_materials(t.cv_brightness["correct"][a], kp_bb[m[ok, 0]])
-        _count_joint(t.cv_joint["correct"][a], pp, kp_mat[m[ok, 0]], kp_bb[m[ok, 0]])
+        _count_joint(t.cv_joint["correct"][a], pp, kp_mat[m[ok, 0]], kp_bb[m[ok, 0]], kp_vb[m[ok, 0]])
         mc = m[ok]
         res = kB.uv_px[mc[:, 1]] - _project(rB, q, XA[mc[:, 0]])[0]
         t.pair_e2.append(np.mean(res**2, axis=1))
@@ -580,8 +581,8 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
     }
     # joint counts pooled over ranges and angles: correct, and expected at the range-and-angle table
     S = SiftCalibration.from_dict({"targets": {"t": out}}, "t").pair_survival                    # (R, A)
-    joint = {k: np.stack([t.cv_joint[k] for t in per_range]) for k in ("matchable", "correct")}   # (R, A, P, M, B)
-    out["cross_view"].update(joint_expected=np.einsum("rapmb,ra->pmb", joint["matchable"], S).round(3).tolist(),
+    joint = {k: np.stack([t.cv_joint[k] for t in per_range]) for k in ("matchable", "correct")}   # (R, A, P, M, B, V)
+    out["cross_view"].update(joint_expected=np.einsum("rapmbv,ra->pmbv", joint["matchable"], S).round(3).tolist(),
                              joint_correct=joint["correct"].sum(axis=(0, 1)).tolist())
     out["brightness_expected_keypoints"] = brightness_expected_keypoints(
         out, np.stack([t.bright_area for t in per_range])).round(2).tolist()
