@@ -183,8 +183,7 @@ def _detect(cams, T, q, sun, fsun, feats, target, cal, u_det, material, rho_F, f
     s_T = _sun_T(q, sun)
     b_lit = None if cal.detection_brightness_factor is None else \
         entry_brightness(g, target, feats, s_T, f_px, at, e_i, f_i, side_sun)
-    f_lit = cal.brightness_factor_at(np.zeros(len(at)) if b_lit is None else b_lit, fp_v)
-    f_dark = cal.brightness_factor_at(np.zeros(len(at)), fp_v)
+    f_lit, f_dark = cal.lit_and_unlit_factors_at(np.zeros(len(at)) if b_lit is None else b_lit, fp_v)
     with np.errstate(invalid="ignore", divide="ignore"):
         p_lit = (cal.density_at(bins, cal.sun_bin(side_sun, can_lit), mat) * f_lit - sub) / rho
         p_dark = (cal.density_at(bins, np.zeros(len(at), dtype=int), mat) * f_dark - sub) / rho

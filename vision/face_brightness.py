@@ -58,8 +58,15 @@ def face_radiance(material: ArrayLike, cos_sun: ArrayLike, n_dot_h: ArrayLike, l
     half vector between the Sun and the camera)."""
     albedo, ks, ns = optics
     m = np.asarray(material, dtype=np.int64)
-    L = albedo[m] * np.maximum(cos_sun, 0.0) + ks[m] * np.maximum(n_dot_h, 0.0) ** ns[m]
+    L = albedo[m] * np.maximum(cos_sun, 0.0) + ks[m] * _power(n_dot_h, ns[m])
     return np.where(np.asarray(lit, dtype=bool), L, 0.0)
+
+
+def _power(x: np.ndarray, exponent: np.ndarray) -> np.ndarray:
+    """``max(x, 0) ** exponent`` (exponent > 0) as ``exp(exponent · log x)``: several times faster than
+    ``**`` with an array of exponents, equal to a few units in the last place."""
+    with np.errstate(divide="ignore"):
+        return np.exp(exponent * np.log(np.maximum(x, 0.0)))
 
 
 def reference_radiance(radiance: ArrayLike, weight: ArrayLike | None = None, axis: int = -1) -> np.ndarray:
@@ -136,7 +143,7 @@ def sample_references(R_CT: np.ndarray, c_T: np.ndarray, s_T: np.ndarray, f_px: 
     n_dot_h = (abs_v + cos_s) / np.sqrt(np.maximum(2.0 + 2.0 * v_dot_s, 1e-12))
     r3 = R_CT[:, :, 2, :].reshape(-1, 3).astype(np.float32)
     z = r3 @ X.T - np.sum(r3 * c, 1)[:, None]                             # depth along the optical axis
-    L = P["albedo"] * cos_s + P["specular"] * np.maximum(n_dot_h, 0.0) ** P["shininess"]
+    L = P["albedo"] * cos_s + P["specular"] * _power(n_dot_h, P["shininess"])
     L = np.where((cos_s > 0) & (z > 0), L, 0.0)
     f = np.repeat(np.asarray(f_px, dtype=np.float32)[None], E, axis=0).reshape(-1, 1)
     area_px = P["area_m2"] * abs_v * (f / np.maximum(z, 1e-6)) ** 2

@@ -5,14 +5,17 @@ the image, facing the camera, unoccluded); the Sun only sets each feature's Sun 
 incidence, or in shadow / facing away: rendered keypoints are found there too, on shadow edges and
 silhouettes).  Then, with the statistics of :mod:`vision.calibration` measured on rendered images:
 
-1. **Detection**: feature f is detected in view i when ``u_f < ρ(z/f, view angle, Sun incidence,
-   material) / ρ_F``, the measured keypoint density over the features' density ``ρ_F = N / area``.  ``u_f`` is one
-   uniform per feature for the whole call, so detections are correlated across views and persist
-   across epochs, as a textured spot is detected again when the view barely changes.
+1. **Detection** (:mod:`vision.calibrated_detection`): feature f is detected in view i when
+   ``u_f < ρ(z/f, view angle, Sun incidence, material) / ρ_F``, the measured keypoint density over
+   the features' density ``ρ_F = N / area``.  ``u_f`` is one uniform per feature for the whole call,
+   so detections are correlated across views and persist across epochs, as a textured spot is
+   detected again when the view barely changes.
 2. **Matching across views**: a pair of views (i, j) that both detect f matches it with the measured
    survival ``S(z/f, angle between the cameras)``, times the measured factors of the pair's Sun phase
    (the Sun's angle from the pair's mean line of sight) and of the feature's surface material
-   (:meth:`SiftCalibration.pair_survival_at`), through a Gaussian copula whose correlation
+   (:meth:`SiftCalibration.pair_survival_at`) and the geometric mean of the two views' factors of
+   the feature's relative brightness and view angle (:mod:`vision.calibration.survival_factors`),
+   through a Gaussian copula whose correlation
    between pairs reproduces the measured ratio of three-view to two-view tracks; tracks are the
    connected components of the pair matches with at least ``min_views`` views.  The matches are
    re-decided every epoch, the copula variables an AR(1) process over the epochs whose correlation
@@ -280,8 +283,14 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
     mat_c = target.triangle_material[feats.triangle_id[cand_id]] \
         if cal.pair_survival_material_factor is not None \
         and len(cal.pair_survival_material_factor) == len(target.materials) else None
-    b_c = None if g.brightness is None or cal.pair_survival_brightness_factor is None else g.brightness[:, :, cand]
-    v_c = None if cal.pair_survival_view_factor is None else g.cos_view[:, :, cand]
+    # each view's survival factor of its relative brightness and view angle (E, n, C); a pair takes the
+    # geometric mean of its two views' (the brightness is NaN where a view does not detect the feature)
+    f_view = []
+    if g.brightness is not None and cal.pair_survival_brightness_factor is not None:
+        f_view.append(cal.survival_brightness_factor_at(np.nan_to_num(g.brightness[:, :, cand])))
+    if cal.pair_survival_view_factor is not None:
+        f_view.append(cal.survival_view_factor_at(g.cos_view[:, :, cand]))
+    f_view = np.sqrt(np.prod(f_view, axis=0)) if f_view else None
     v_size = rng.random(C)
     e_kept = rng.standard_normal((C, n, 2))                               # each feature's error kept per view
     rho_c, rho_t = _calibration_correlations(cal)
@@ -313,10 +322,9 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         two = np.nonzero(n_det >= 2)[0]
         S = cal.pair_survival_at(np.nan_to_num(fp_f[two], nan=1.0)[:, None, None], ang[None], phase_deg[k][None],
                                  None if mat_c is None else mat_c[two][:, None, None])
-        for x, factor_at in ((b_c, cal.survival_brightness_factor_at), (v_c, cal.survival_view_factor_at)):
-            if x is not None:           # the geometric mean of the factors of the pair's two views
-                fb = np.sqrt(factor_at(np.nan_to_num(x[k][:, two].T)))                   # (two, n)
-                S = np.minimum(S * fb[:, :, None] * fb[:, None, :], 1.0)
+        if f_view is not None:
+            fb = f_view[k][:, two].T                                                      # (two, n)
+            S = np.minimum(S * fb[:, :, None] * fb[:, None, :], 1.0)
         if feats.sites is not None:                                       # distinct sites match more often
             site = cand_id[two] < len(feats.sites)
             S = np.where(site[:, None, None], feats.sites.pair_survival(

@@ -452,6 +452,20 @@ class SiftCalibration:
             return np.ones(np.broadcast_shapes(np.shape(brightness), np.shape(footprint_m_per_px)))
         return self._by_range(f, footprint_m_per_px, brightness_bin(brightness))
 
+    def lit_and_unlit_factors_at(self, brightness: ArrayLike, footprint_m_per_px: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`brightness_factor_at` of ``brightness`` and of unlit surfaces (brightness 0) at the same
+        footprints, sharing their interpolation weights."""
+        from vision.face_brightness import brightness_bin
+
+        f = self.detection_brightness_factor
+        if f is None:
+            one = np.ones(np.broadcast_shapes(np.shape(brightness), np.shape(footprint_m_per_px)))
+            return one, one
+        i, j, w = self._range_weights(np.asarray(footprint_m_per_px, dtype=float))
+        w = np.clip(w, 0.0, 1.0)
+        b = brightness_bin(brightness)
+        return (1.0 - w) * f[i, b] + w * f[j, b], (1.0 - w) * f[i, 0] + w * f[j, 0]
+
     def survival_brightness_factor_at(self, brightness: ArrayLike) -> np.ndarray:
         """Cross-view survival factor of a keypoint at this relative brightness (1 without the table)."""
         from vision.face_brightness import brightness_bin
@@ -559,4 +573,10 @@ def load_calibration(target: str, *, path: str | Path | None = None) -> SiftCali
     name = "fy1" if target in ("fy1", "FY-1-like") else target
     if name not in data.get("targets", {}):
         name = "topex"
-    return SiftCalibration.from_dict(data, name)
+    return _from_file(p, name)
+
+
+@functools.lru_cache(maxsize=8)
+def _from_file(path: str, name: str) -> SiftCalibration:
+    """One target's calibration of a file read by :func:`_read`, built once (the joint survival fit)."""
+    return SiftCalibration.from_dict(_read(path), name)
