@@ -325,9 +325,8 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
     np.add.at(t.mat_kp, mat[on[hit]], 1.0)
     np.add.at(t.bright_kp, bb[on[hit]], 1.0)
     t.phase_kp[pb] += hit.sum()
-    kp_mat = np.where(hit, mat[np.maximum(on, 0)], -1)       # material under each keypoint (-1: off the target)
-    kp_bb = np.where(hit, bb[np.maximum(on, 0)], -1)         # and its relative-brightness bin
-    kp_vb = np.where(hit, vb[np.maximum(on, 0)], -1)         # and its view-angle bin
+    # material, relative-brightness bin and view-angle bin under each keypoint (-1: off the target)
+    kp_mat, kp_bb, kp_vb = (np.where(hit, x[np.maximum(on, 0)], -1) for x in (mat, bb, vb))
     if len(kA) < 2:
         return
     XA = _body_points(rA, target, q, kA.uv_px)
