@@ -48,6 +48,8 @@ FOOTPRINT_STEP_OCTAVES = 0.25
 RATIO_TEST = 0.6
 #: scales of the Rayleigh law of the true match's descriptor distance tabulated by :func:`_rayleigh_scale`
 _SCALE_GRID = np.geomspace(1e-3, 1e2, 400)
+#: survivals at which each material's Rayleigh scale is tabulated (uniform, for a fast lookup)
+_SURVIVAL_GRID = np.linspace(0.0, 1.0, 1001)
 #: radius of the flat surface a site needs around it (:func:`_flat_support`) over its SIFT diameter
 SUPPORT_RADIUS_OVER_SIZE = 0.75
 #: largest angle between the site's normal and the surface normal within its support, degrees
@@ -115,27 +117,44 @@ class TextureSites:
         out[self.material] = self.density_per_m2
         return out
 
-    def _survival_table(self) -> np.ndarray:
-        """Mean survival over the sites at each scale of :data:`_SCALE_GRID` (computed once)."""
-        if "_table" not in self.__dict__:
-            sub = self.descriptor_gap[:: max(1, len(self.descriptor_gap) // 4000)]
-            object.__setattr__(self, "_table", np.array(
-                [np.mean(1.0 - np.exp(-((RATIO_TEST * sub / c) ** 2))) for c in _SCALE_GRID]))
-        return self.__dict__["_table"]
+    def _log_scale_by_material(self) -> np.ndarray:
+        """``log c`` per material ``(P, G)`` at the survivals of :data:`_SURVIVAL_GRID`: the Rayleigh scale
+        at which the mean survival over that material's sites is the grid's value (computed once)."""
+        if "_log_scale" not in self.__dict__:
+            out = np.zeros((int(self.n_materials), len(_SURVIVAL_GRID)))
+            for m in np.unique(self.material):
+                gap = self.descriptor_gap[self.material == m]
+                sub = gap[:: max(1, len(gap) // 4000)]
+                mean = np.array([np.mean(1.0 - np.exp(-((RATIO_TEST * sub / c) ** 2))) for c in _SCALE_GRID])
+                out[m] = np.log(_rayleigh_scale(mean, _SURVIVAL_GRID))
+            object.__setattr__(self, "_log_scale", out)
+        return self.__dict__["_log_scale"]
 
     def pair_survival(self, survival, site) -> np.ndarray:
-        """Probability that a view pair matches site ``site`` when the mean over the sites is ``survival``.
+        """Probability that a view pair matches site ``site`` when the mean over the sites of its material
+        is ``survival``.
 
         The ratio test keeps a site when the descriptor distance of its true match, ``d``, is below
         ``RATIO_TEST · descriptor_gap``.  With ``d`` Rayleigh-distributed of a scale ``c`` (the viewpoint
         and noise change of a descriptor between views), a site survives with ``1 − exp(−(RATIO_TEST ·
-        gap / c)²)``; ``c`` is chosen so that the mean over all the sites is the measured ``survival``
-        (:func:`_rayleigh_scale`).  ``survival`` and ``site`` broadcast.
+        gap / c)²)``; ``c`` is chosen so that the mean over the sites of the site's material is the
+        ``survival`` given, which already carries the measured factor of that material
+        (:mod:`vision.calibration.survival_factors`): the gaps spread the survival within a material,
+        not between materials (:func:`_rayleigh_scale`).  ``survival`` and ``site`` broadcast.
         """
         S = np.asarray(survival, dtype=float)
-        c = _rayleigh_scale(self._survival_table(), S)
-        g = self.descriptor_gap[np.asarray(site, dtype=np.int64)]
-        return 1.0 - np.exp(-((RATIO_TEST * g / c) ** 2))
+        site = np.asarray(site, dtype=np.int64)
+        c = np.exp(_interp_rows(self._log_scale_by_material(), self.material[site], S))
+        return 1.0 - np.exp(-((RATIO_TEST * self.descriptor_gap[site] / c) ** 2))
+
+
+def _interp_rows(table: np.ndarray, row: np.ndarray, survival: np.ndarray) -> np.ndarray:
+    """``table[row]`` interpolated linearly at ``survival`` on :data:`_SURVIVAL_GRID` (uniform, held beyond)."""
+    x = np.clip(np.asarray(survival, dtype=float), 0.0, 1.0) * (len(_SURVIVAL_GRID) - 1)
+    x, row = np.broadcast_arrays(x, row)
+    i = np.minimum(x.astype(np.int64), len(_SURVIVAL_GRID) - 2)
+    w = x - i
+    return (1.0 - w) * table[row, i] + w * table[row, i + 1]
 
 
 def _rayleigh_scale(mean_survival: np.ndarray, survival: np.ndarray) -> np.ndarray:

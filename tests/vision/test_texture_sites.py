@@ -193,3 +193,17 @@ def test_a_feature_keeps_the_measured_share_of_its_error_between_epochs(fy1):
     cls = track_class(np.array([2, 3]), 3)
     kept = [1.0 - cal.sigma_inflation(fp, 10.0, c, increment=True) / cal.sigma_inflation(fp, 10.0, c) for c in cls]
     assert np.corrcoef(a, b)[0, 1] == pytest.approx(float(np.mean(kept)), abs=0.1)
+
+
+@pytest.mark.parametrize("survival", [0.05, 0.3, 0.7])
+def test_pair_survival_keeps_each_materials_mean_and_spreads_by_the_descriptor_gap(fy1, survival):
+    """The survival passed in already carries the material's factor: over the sites of each material the
+    mean of the per-site survival is that value (to 1e-3: the tabulated scale), and within a material
+    a site with a larger descriptor gap (a more distinctive blob) survives more often."""
+    sites = texture_sites(fy1, footprint_level(40.0 / CAM.K[0, 0]))
+    for m in np.unique(sites.material):
+        idx = np.flatnonzero(sites.material == m)
+        s = sites.pair_survival(survival, idx)
+        assert s.mean() == pytest.approx(survival, abs=1e-3)
+        order = np.argsort(sites.descriptor_gap[idx])
+        assert np.all(np.diff(s[order]) >= -1e-12)
