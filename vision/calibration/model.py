@@ -307,10 +307,16 @@ class SiftCalibration:
         lf = np.log(self.footprint_m_per_px)
         return lf, np.diff(lf)
 
-    def _by_range(self, table: np.ndarray, footprint: ArrayLike, column: np.ndarray) -> np.ndarray:
-        """``table[r, column]`` interpolated in footprint (held beyond the calibrated ones)."""
+    def _clipped_range_weights(self, footprint: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_range_weights` with the weight held at the nearest calibrated footprint beyond them."""
         i, j, w = self._range_weights(np.asarray(footprint, dtype=float))
-        w = np.clip(w, 0.0, 1.0)
+        return i, j, np.clip(w, 0.0, 1.0)
+
+    def _by_range(self, table: np.ndarray, footprint: ArrayLike, column: np.ndarray,
+                  weights: tuple | None = None) -> np.ndarray:
+        """``table[r, column]`` interpolated in footprint (held beyond the calibrated ones); ``weights``:
+        :meth:`_clipped_range_weights` of ``footprint`` if already computed."""
+        i, j, w = weights if weights is not None else self._clipped_range_weights(footprint)
         return (1.0 - w) * table[i, column] + w * table[j, column]
 
     # -- the measured statistics -----------------------------------------------------------------
@@ -324,10 +330,7 @@ class SiftCalibration:
         if footprint_m_per_px is None:
             return np.where(np.isfinite(s), self.sigma_px[b], np.nan)
         fp = np.broadcast_to(np.asarray(footprint_m_per_px, dtype=float), s.shape)
-        i, j, w = self._range_weights(fp)
-        w = np.clip(w, 0.0, 1.0)
-        sig = (1.0 - w) * self.sigma_px_by_range[i, b] + w * self.sigma_px_by_range[j, b]
-        return np.where(np.isfinite(s), sig, np.nan)
+        return np.where(np.isfinite(s), self._by_range(self.sigma_px_by_range, fp, b), np.nan)
 
     def sigma_inflation(self, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike, track_class: ArrayLike, *,
                         increment: bool = False, epoch: bool = False) -> np.ndarray:
@@ -461,10 +464,9 @@ class SiftCalibration:
         if f is None:
             one = np.ones(np.broadcast_shapes(np.shape(brightness), np.shape(footprint_m_per_px)))
             return one, one
-        i, j, w = self._range_weights(np.asarray(footprint_m_per_px, dtype=float))
-        w = np.clip(w, 0.0, 1.0)
-        b = brightness_bin(brightness)
-        return (1.0 - w) * f[i, b] + w * f[j, b], (1.0 - w) * f[i, 0] + w * f[j, 0]
+        weights = self._clipped_range_weights(footprint_m_per_px)
+        return (self._by_range(f, footprint_m_per_px, brightness_bin(brightness), weights),
+                self._by_range(f, footprint_m_per_px, 0, weights))
 
     def survival_brightness_factor_at(self, brightness: ArrayLike) -> np.ndarray:
         """Cross-view survival factor of a keypoint at this relative brightness (1 without the table)."""
