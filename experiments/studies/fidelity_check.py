@@ -12,7 +12,8 @@ truth point's own error accounted for, :mod:`experiments.studies.triangulation_c
 plain statistic beside it).
 
 ``python -m experiments.studies.fidelity_check --help`` runs it, ``--table`` prints the comparison
-(``docs/reproduction.md``).
+(``docs/reproduction.md``) and ``--paired-table`` the per-trial ratios of two modes, which the trials'
+common attitudes make far steadier than the ratio of two medians.
 """
 
 from __future__ import annotations
@@ -45,7 +46,8 @@ from vision.calibration import load_calibration
 from vision.camera import PinholeCamera
 from vision.target import Target, fy1_target, load_mesh
 
-__all__ = ["MODES", "CheckCell", "check_cell", "median_ratio_interval", "nees_of_frame", "same_surface_points", "main"]
+__all__ = ["MODES", "CheckCell", "check_cell", "median_ratio_interval", "nees_of_frame", "paired_ratio_interval",
+           "paired_table", "same_surface_points", "main"]
 
 #: mode name → (observer, noise model)
 MODES = {
@@ -249,15 +251,67 @@ def median_ratio_interval(num: Sequence[float], den: Sequence[float], *, level: 
     return float(np.median(a) / np.median(b)), float(lo), float(hi)
 
 
+def paired_ratio_interval(num: Sequence[float], den: Sequence[float], *, level: float = 0.9,
+                          draws: int = 2000, seed: int = 0) -> tuple[float, float, float]:
+    """Median over the trials of the per-trial ratio ``num[i] / den[i]`` (the same trial's attitudes
+    and seeds in both runs; trials where either is not finite or ``den`` is not positive dropped) and
+    its bootstrap interval (percentile, ``level``, the trials resampled): the systematic difference
+    between two modes, without the spread between the trials that the ratio of two medians carries."""
+    a = np.asarray(num, dtype=float)
+    b = np.asarray(den, dtype=float)
+    n = min(a.size, b.size)
+    a, b = a[:n], b[:n]
+    ok = np.isfinite(a) & np.isfinite(b) & (b > 0)
+    r = a[ok] / b[ok]
+    if r.size == 0:
+        return float("nan"), float("nan"), float("nan")
+    boot = np.median(np.random.default_rng(seed).choice(r, (draws, r.size)), axis=1)
+    lo, hi = np.quantile(boot, [(1.0 - level) / 2.0, (1.0 + level) / 2.0])
+    return float(np.median(r)), float(lo), float(hi)
+
+
+#: the metrics compared per cell: result key, column title, number format
+_METRICS = (("tracks", "tracks per epoch", "{:.0f}"), ("ml_step_rms_deg", "ML per-step RMS (deg)", "{:.3f}"),
+            ("ransac_step_rms_deg", "robust Kabsch per-step RMS (deg)", "{:.3f}"), ("crlb_deg", "CRLB (deg)", "{:.3f}"))
+
+
+def _cell_of(res: dict, key: tuple) -> dict:
+    hit = next((x for x in res["cells"] if (x["n_views"], x["distance_m"], x["axis_angle_deg"]) == key), None)
+    if hit is None:
+        raise ValueError(f"cell {key} (views, distance_m, axis_angle_deg) is in the rendered results but not in "
+                         "a geometric one: run the same grid")
+    return hit
+
+
+def paired_table(rendered: dict, calibrated: dict) -> str:
+    """Per cell and metric: the median per-trial ratio calibrated / rendered and its 90 % bootstrap
+    interval (:func:`paired_ratio_interval`); ✓ within ±25 %, ~ not but the interval reaches into it,
+    nothing where the trials show a difference beyond 25 %.  Last line: the count of each mark."""
+    head = "| views, range, angle | trials | " + " | ".join(m[1] for m in _METRICS) + " |"
+    lines = [head, "|---" * (len(_METRICS) + 2) + "|"]
+    marks = {"✓": 0, "~": 0, "": 0}
+    for c in rendered["cells"]:
+        key = (c["n_views"], c["distance_m"], c["axis_angle_deg"])
+        g = _cell_of(calibrated, key)
+        n = min(len(x["per_trial"]["tracks"]) for x in (c, g))
+        row = [f"{key[0]}, {key[1]:g} m, {key[2]:g}°", str(n)]
+        for k, _, _ in _METRICS:
+            r, lo, hi = paired_ratio_interval(g["per_trial"][k][:n], c["per_trial"][k][:n])
+            mark = "✓" if abs(r - 1.0) <= 0.25 else "~" if lo <= 1.25 and hi >= 0.75 else ""
+            marks[mark] += 1
+            row.append(f"{r:.2f} [{lo:.2f}–{hi:.2f}]{' ' + mark if mark else ''}")
+        lines.append("| " + " | ".join(row) + " |")
+    lines.append(f"\nwithin ±25 %: {marks['✓']}; undecided (~): {marks['~']}; beyond: {marks['']}")
+    return "\n".join(lines)
+
+
 def markdown_table(rendered: dict, fixed: dict, calibrated: dict) -> str:
     """Per cell: rendered / fixed geometric / calibrated geometric medians over the trials the three
     runs have in common (the first ones: the trial seeds do not depend on the count); ✓ where the
     calibrated value is within ±25 % of the rendered one (not for the failed steps); ~ where it is
     not but the 90 % bootstrap interval of the ratio (:func:`median_ratio_interval`) reaches into
     ±25 %: the trials cannot tell."""
-    keys = (("tracks", "tracks per epoch", "{:.0f}"), ("ml_step_rms_deg", "ML per-step RMS (deg)", "{:.3f}"),
-            ("ransac_step_rms_deg", "robust Kabsch per-step RMS (deg)", "{:.3f}"), ("crlb_deg", "CRLB (deg)", "{:.3f}"),
-            ("ml_failed_steps", "ML failed steps", "{:.1f}"),
+    keys = (*_METRICS, ("ml_failed_steps", "ML failed steps", "{:.1f}"),
             ("ml_cauchy_step_rms_deg", "ML, Cauchy kernel, per-step RMS (deg)", "{:.3f}"))
     # result files written before the Cauchy kernel lack its column
     keys = tuple(k for k in keys if all(k[0] in x["per_trial"] for res in (rendered, fixed, calibrated)
@@ -265,20 +319,13 @@ def markdown_table(rendered: dict, fixed: dict, calibrated: dict) -> str:
     head = "| views, range, angle | trials | " + " | ".join(k[1] for k in keys) + " |"
     lines = [head, "|---" * (len(keys) + 2) + "|"]
 
-    def cell_of(res, c):
-        hit = next((x for x in res["cells"] if (x["n_views"], x["distance_m"], x["axis_angle_deg"]) == c), None)
-        if hit is None:
-            raise ValueError(f"cell {c} (views, distance_m, axis_angle_deg) is in the rendered results but not in "
-                             "a geometric one: run the same grid")
-        return hit
-
     def median(cell, k, n):
         v = np.asarray(cell["per_trial"][k][:n], dtype=float)
         return float(np.median(v[np.isfinite(v)])) if np.isfinite(v).any() else float("nan")
 
     for c in rendered["cells"]:
         key = (c["n_views"], c["distance_m"], c["axis_angle_deg"])
-        f, g = cell_of(fixed, key), cell_of(calibrated, key)
+        f, g = _cell_of(fixed, key), _cell_of(calibrated, key)
         n = min(len(x["per_trial"]["tracks"]) for x in (c, f, g))
         row = [f"{key[0]}, {key[1]:g} m, {key[2]:g}°", str(n)]
         for k, _, fmt in keys:
@@ -328,6 +375,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--table", nargs=3, metavar=("RENDERED", "FIXED", "CALIBRATED"),
                     help="print the markdown table of the three modes' result files (each a comma-separated "
                          "list whose cells are joined) instead of running")
+    ap.add_argument("--paired-table", nargs=2, metavar=("RENDERED", "CALIBRATED"),
+                    help="print the per-trial (paired) ratios of a geometric result file to a rendered one "
+                         "(each a comma-separated list whose cells are joined) instead of running")
     ap.add_argument("--nees-table", nargs="+", metavar="RENDERED",
                     help="print the triangulation NEES table of rendered result files instead of running")
     ap.add_argument("--trials", type=int, default=20)
@@ -340,6 +390,11 @@ def main(argv: Sequence[str] | None = None) -> None:
         r, f, g = ({"cells": [c for p in arg.split(",") for c in json.loads(Path(p).read_text(encoding="utf-8"))["cells"]]}
                    for arg in a.table)
         print(markdown_table(r, f, g))
+        return
+    if a.paired_table:
+        r, g = ({"cells": [c for p in arg.split(",") for c in json.loads(Path(p).read_text(encoding="utf-8"))["cells"]]}
+                for arg in a.paired_table)
+        print(paired_table(r, g))
         return
     if a.nees_table:
         print(nees_table([json.loads(Path(p).read_text(encoding="utf-8")) for p in a.nees_table]))

@@ -54,6 +54,7 @@ from vision.calibration import (
     SUN_BIN_EDGES,
     SiftCalibration,
 )
+from vision.calibration.detection_factors import sequential_expected_keypoints
 from vision.camera import PinholeCamera, look_at
 from vision.face_brightness import (
     BRIGHTNESS_EDGES,
@@ -262,6 +263,7 @@ class _Tally:
         # density tables would fill it with (the factor's prediction, vision.calibration.model)
         self.bright_kp = np.zeros(len(BRIGHTNESS_EDGES) - 1)
         self.bright_area = np.zeros((len(BRIGHTNESS_EDGES) - 1, nv, ns, n_materials))
+        self.joint_kp = np.zeros(self.bright_area.shape, dtype=np.int64)   # the joint detection factors
         self.phase_kp = np.zeros(len(PHASE_EDGES_DEG) - 1)
         self.phase_area = np.zeros(len(PHASE_EDGES_DEG) - 1)
         a, d = len(spec.cross_view_deg), len(spec.epoch_change_deg)
@@ -324,6 +326,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
     np.add.at(t.kp, (vb[on[hit]], sb[on[hit]]), 1.0)
     np.add.at(t.mat_kp, mat[on[hit]], 1.0)
     np.add.at(t.bright_kp, bb[on[hit]], 1.0)
+    np.add.at(t.joint_kp, (bb[on[hit]], vb[on[hit]], sb[on[hit]], mat[on[hit]]), 1)
     t.phase_kp[pb] += hit.sum()
     # material, relative-brightness bin and view-angle bin under each keypoint (-1: off the target)
     kp_mat, kp_bb, kp_vb = (np.where(hit, x[np.maximum(on, 0)], -1) for x in (mat, bb, vb))
@@ -583,18 +586,12 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
     joint = {k: np.stack([t.cv_joint[k] for t in per_range]) for k in ("matchable", "correct")}   # (R, A, P, M, B, V)
     out["cross_view"].update(joint_expected=np.einsum("rapmbv,ra->pmbv", joint["matchable"], S).round(3).tolist(),
                              joint_correct=joint["correct"].sum(axis=(0, 1)).tolist())
-    out["brightness_expected_keypoints"] = brightness_expected_keypoints(
-        out, np.stack([t.bright_area for t in per_range])).round(2).tolist()
+    # the sequential brightness factor's denominator (files read without the joint fit), then the
+    # joint counts per (brightness, view, Sun, material) bin (vision.calibration.detection_factors)
+    area = np.stack([t.bright_area for t in per_range])
+    cal = SiftCalibration.from_dict({"targets": {"t": out}}, "t")
+    out["brightness_expected_keypoints"] = sequential_expected_keypoints(
+        cal.density_per_m2, cal.material_factor, area).round(2).tolist()
+    out["detection_joint"] = {"area_m2": area.round(4).tolist(),
+                              "keypoints": np.stack([t.joint_kp for t in per_range]).tolist()}
     return out
-
-
-def brightness_expected_keypoints(summary: dict, area_m2: np.ndarray) -> np.ndarray:
-    """Keypoints ``(R, B)`` the target's density table and material factors (as
-    :class:`vision.calibration.SiftCalibration` reads them from ``summary``) predict on the surface of
-    each range and relative-brightness bin, from its area per (view, Sun, material) bin ``area_m2 (R,
-    B, V, S, P)``: the denominator of the detection brightness factor (the file keeps these sums, not
-    the areas)."""
-    cal = SiftCalibration.from_dict({"targets": {"t": summary}}, "t")
-    P = area_m2.shape[-1]
-    mf = cal.material_factor if cal.material_factor.shape[1] == P else np.ones((len(area_m2), P))
-    return np.einsum("rbvsp,rvs,rp->rb", area_m2, cal.density_per_m2, mf)

@@ -9,6 +9,8 @@ from experiments.studies.fidelity_check import (
     check_cell,
     markdown_table,
     median_ratio_interval,
+    paired_ratio_interval,
+    paired_table,
 )
 
 
@@ -57,6 +59,25 @@ def test_table_marks_within_25_percent_undecided_and_outside():
     assert row["close"].count("✓") == 4 and "~" not in row["close"]
     assert "✓" not in row["far"] and "~" not in row["far"]
     assert "✓" not in row["unsure"] and row["unsure"].count("~") == 4
+
+
+def test_paired_ratio_sees_a_bias_that_the_ratio_of_medians_cannot():
+    """The trials share attitudes: a mode at 0.7 of the other in every trial (2 % noise) over trials
+    spread by a factor e^0.8.  The paired ratio is 0.7 with an interval within 0.65-0.75 and its table
+    marks no cell within 25 %; the ratio of the medians' interval reaches into ±25 % (~)."""
+    rng = np.random.default_rng(5)
+    base = np.exp(rng.normal(0.0, 0.8, 20))
+    cal = 0.7 * base * np.exp(rng.normal(0.0, 0.02, 20))
+    r, lo, hi = paired_ratio_interval(cal, base)
+    assert r == pytest.approx(0.7, abs=0.02) and 0.65 < lo <= r <= hi < 0.75
+    _, mlo, mhi = median_ratio_interval(cal, base)
+    assert mlo <= 1.25 and mhi >= 0.75
+    table = paired_table(_result(_trials(base)), _result(_trials(cal)))
+    assert "✓" not in table.splitlines()[2] and "~" not in table.splitlines()[2]
+    assert table.splitlines()[-1] == "within ±25 %: 0; undecided (~): 0; beyond: 4"
+    # equal per trial: ratio exactly 1, every metric within; unpaired trials and NaN are dropped
+    assert paired_ratio_interval(np.r_[base, 5.0], np.r_[base, np.nan])[:1] == (1.0,)
+    assert all(np.isnan(paired_ratio_interval([np.nan], [1.0])))
 
 
 def test_a_geometric_cell_is_consistent_with_its_own_noise_model():

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
+from vision.calibration.detection_factors import detection_factors
 from vision.calibration.survival_factors import MIN_EXPECTED_CORRECT as _MIN_EXPECTED_CORRECT
 from vision.calibration.survival_factors import survival_factors
 from vision.calibration.tables import CalibrationTableEmpty
@@ -256,7 +257,11 @@ class SiftCalibration:
             h_s = (kp.sum(axis=1) / area.sum(axis=1)) / rho_r[:, None]
             cell = kp / area
         factor = rho_r[:, None, None] * np.nan_to_num(g_v)[:, :, None] * np.nan_to_num(h_s)[:, None, :]
-        dens = np.where(area >= _MIN_CELL_AREA_M2, cell, factor)
+        dens, measured = np.where(area >= _MIN_CELL_AREA_M2, cell, factor), area >= _MIN_CELL_AREA_M2
+        mat_f, bright_f = _material_factor(t), _brightness_factor(t)
+        if "detection_joint" in t:           # the joint fit (vision.calibration.detection_factors)
+            dens, mat_f, bright_f, measured = detection_factors(t["detection_joint"]["area_m2"],
+                                                                t["detection_joint"]["keypoints"])
         q = [r for r in t["track_size_px_quantiles_by_range"]]
         qfill = next((r for r in q if r is not None), None)
         if qfill is None:
@@ -275,11 +280,11 @@ class SiftCalibration:
             change_deg=np.asarray(t["association"]["change_deg"], dtype=float),
             association_survival=_table(_conditional(t["association"]["correct"], t["association"]["redetected"])),
             false_association_rate=_table(t["association"]["false_rate"]),
-            measured_cell=area >= _MIN_CELL_AREA_M2,
+            measured_cell=measured,
             track_persistence=np.array([np.nan if v is None else float(v) for v in
                                         t["cross_view"].get("persistence", [None] * len(t["ranges_m"]))]),
-            material_factor=_material_factor(t),
-            detection_brightness_factor=_brightness_factor(t),
+            material_factor=mat_f,
+            detection_brightness_factor=bright_f,
             three_over_two_ratio=(float(sum(t["cross_view"]["three_view_tracks"]))
                                   / max(1.0, float(sum(t["cross_view"]["two_view_tracks"])))),
             provenance=dict(data.get("provenance", {})),

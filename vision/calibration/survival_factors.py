@@ -42,11 +42,12 @@ KINDS = ("phase", "material", "brightness", "view")
 
 
 def fit_main_effects(expected: np.ndarray, observed: np.ndarray, *, iterations: int = 500,
-                     tol: float = 1e-10) -> list[np.ndarray]:
+                     tol: float = 1e-10, fixed: list[np.ndarray] | None = None) -> list[np.ndarray]:
     """Factors ``f_k`` (one per axis) of the Poisson model ``observed ~ expected · Π_k f_k[i_k]`` by
     iterative proportional fitting: at convergence every axis's margin of the model equals the
-    observed margin.  Classes with no expected count keep factor 1.  The scale is shared: each factor
-    but the last has mean 1 weighted by its margin of ``expected``."""
+    observed margin.  Classes with no expected count keep factor 1, and so do the classes marked in
+    ``fixed`` (one bool array per axis; their margins are then not matched).  The scale is shared:
+    each factor but the last has mean 1 weighted by its margin of ``expected``."""
     e = np.asarray(expected, dtype=float)
     o = np.asarray(observed, dtype=float)
     if e.shape != o.shape:
@@ -61,6 +62,8 @@ def fit_main_effects(expected: np.ndarray, observed: np.ndarray, *, iterations: 
             m, obs_k = model.sum(axis=other), o.sum(axis=other)
             with np.errstate(invalid="ignore", divide="ignore"):
                 r = np.where(m > 0, obs_k / m, 1.0)
+            if fixed is not None:
+                r = np.where(fixed[k], 1.0, r)
             f[k] = f[k] * r
             step = max(step, float(np.max(np.abs(np.log(np.where(r > 0, r, 1.0))))))
         if step < tol:
