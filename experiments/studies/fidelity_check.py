@@ -278,21 +278,21 @@ _METRICS = (("tracks", "tracks per epoch", "{:.0f}"), ("ml_step_rms_deg", "ML pe
 def _cell_of(res: dict, key: tuple) -> dict:
     hit = next((x for x in res["cells"] if (x["n_views"], x["distance_m"], x["axis_angle_deg"]) == key), None)
     if hit is None:
-        raise ValueError(f"cell {key} (views, distance_m, axis_angle_deg) is in the rendered results but not in "
-                         "a geometric one: run the same grid")
+        raise ValueError(f"cell {key} (views, distance_m, axis_angle_deg) is in one result file but not in the "
+                         "other: run the same grid")
     return hit
 
 
 def paired_table(rendered: dict, calibrated: dict) -> str:
-    """Per cell and metric: the median per-trial ratio calibrated / rendered and its 90 % bootstrap
+    """Per cell of ``calibrated`` and metric: the median per-trial ratio calibrated / rendered and its 90 % bootstrap
     interval (:func:`paired_ratio_interval`); ✓ within ±25 %, ~ not but the interval reaches into it,
     nothing where the trials show a difference beyond 25 %.  Last line: the count of each mark."""
     head = "| views, range, angle | trials | " + " | ".join(m[1] for m in _METRICS) + " |"
     lines = [head, "|---" * (len(_METRICS) + 2) + "|"]
     marks = {"✓": 0, "~": 0, "": 0}
-    for c in rendered["cells"]:
-        key = (c["n_views"], c["distance_m"], c["axis_angle_deg"])
-        g = _cell_of(calibrated, key)
+    for g in calibrated["cells"]:                  # the cells run in the geometric mode
+        key = (g["n_views"], g["distance_m"], g["axis_angle_deg"])
+        c = _cell_of(rendered, key)
         n = min(len(x["per_trial"]["tracks"]) for x in (c, g))
         row = [f"{key[0]}, {key[1]:g} m, {key[2]:g}°", str(n)]
         for k, _, _ in _METRICS:

@@ -21,9 +21,9 @@ observation mode does (:func:`vision.render.render`, :func:`vision.rendered.fore
 * **keypoint localisation σ per SIFT size**: for correct matches, the residual between B's keypoint
   and the projection of the surface point under A's keypoint has variance σ²(size_A) + σ²(size_B)
   per axis; σ² per size bin is the non-negative least-squares solution over all matches;
-* **three views**: a third camera at the first cross-view angle from both A and B; the tracks of
-  the three views (:func:`vision.features.match_views`) against the matches of A and B alone tell
-  how strongly the pair matches of one feature are correlated;
+* **three views**: a third camera at the first cross-view angle from both A and B; the tracks of the
+  three views (:func:`vision.features.match_views`) against the matches of A and B alone tell how
+  strongly the pair matches of one feature are correlated, with the share seen in all three;
 * **track persistence**: the tracks of the first cross-view pair that are matched again between the
   same two cameras after the first epoch change (over those both cameras still see);
 * **inter-epoch association**: A's matched keypoints (the tracks of the 10° pair) against the
@@ -284,6 +284,7 @@ class _Tally:
         self.nz = nz
         self.tracks2 = 0
         self.tracks3 = 0
+        self.tracks3_full = 0       # of those, the tracks seen in all three views
         self.persist_num = 0
         self.persist_den = 0
         self.samples = 0
@@ -383,6 +384,7 @@ def _sample(spec: CalibrationSpec, target: Target, cam: PinholeCamera, range_m: 
                                    epipolar_tol_px=spec.epipolar_tol_px)
                 t.tracks2 += len(m)
                 t.tracks3 += obs3.n_tracks
+                t.tracks3_full += int(np.sum(obs3.seen.all(axis=1)))
     if len(tracks) == 0:
         return
     kT = kA.subset(tracks)
@@ -568,6 +570,7 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
             "persistence_candidates": [t.persist_den for t in per_range],
             "persistence": [None if not t.persist_den else t.persist_num / t.persist_den for t in per_range],
             "three_view_tracks": [t.tracks3 for t in per_range],
+            "three_view_full_tracks": [t.tracks3_full for t in per_range],
             **{f"phase_{k}": [t.cv_phase[k].astype(int).tolist() for t in per_range]
                for k in ("matchable", "redetected", "correct")},
             **{f"{c}_{k}": [getattr(t, f"cv_{c}")[k].astype(int).tolist() for t in per_range]

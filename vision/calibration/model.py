@@ -175,6 +175,8 @@ class SiftCalibration:
         the viewpoint change.
     three_over_two_ratio : float
         Tracks of three cameras at the first cross-view angle over matches of two of them.
+    three_view_track_share : float
+        Of those tracks of three cameras, the share seen in all three (NaN in files without the count).
     material_factor : ndarray (R, P)
         Density of each of the target's P materials over the target's mean (area-weighted mean 1;
         1 for materials with less than 2 m² seen).
@@ -242,6 +244,7 @@ class SiftCalibration:
     detection_brightness_factor: np.ndarray | None = None
     pair_survival_brightness_factor: np.ndarray | None = None
     pair_survival_view_factor: np.ndarray | None = None
+    three_view_track_share: float = float("nan")
 
     @classmethod
     def from_dict(cls, data: dict, target: str) -> SiftCalibration:
@@ -287,6 +290,9 @@ class SiftCalibration:
             detection_brightness_factor=bright_f,
             three_over_two_ratio=(float(sum(t["cross_view"]["three_view_tracks"]))
                                   / max(1.0, float(sum(t["cross_view"]["two_view_tracks"])))),
+            three_view_track_share=(float(sum(t["cross_view"]["three_view_full_tracks"]))
+                                    / max(1.0, float(sum(t["cross_view"]["three_view_tracks"]))))
+            if "three_view_full_tracks" in t["cross_view"] else float("nan"),
             provenance=dict(data.get("provenance", {})),
             **{f"pair_survival_{by}_factor": f for by, f in survival_factors(t["cross_view"]).items()},
             phase_edges_deg=np.asarray(data.get("phase_edges_deg", PHASE_EDGES_DEG), dtype=float),
