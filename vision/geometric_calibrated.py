@@ -364,7 +364,7 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         is_track = members.sum(axis=1) >= min_views
         fid = two[is_track]                                               # local (candidate) indices
         seen = members[is_track]                                          # (M, n)
-        if n == 3 and np.isfinite(cal.three_view_track_share):
+        if n == 3 and min_views == 2 and np.isfinite(cal.three_view_track_share):   # measured with min_views 2
             seen = _thin_full_tracks(seen, cal.three_view_track_share, rng)
         # association state: keep, renew or (false association) take another feature's descriptor
         if prev is not None:
