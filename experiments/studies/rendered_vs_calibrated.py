@@ -15,7 +15,10 @@ one line-of-sight angle, per distance:
     python -m experiments.studies.rendered_vs_calibrated runs/003_fig5_fig6_rendered_medium runs/003_fig5_fig6_calibrated_v2
 
 prints both tables as Markdown, the columns ordered 2 views rendered, 2 views calibrated, 3 views
-rendered, 3 views calibrated.
+rendered, 3 views calibrated, then a third: the two grids trial by trial (:func:`paired_table`).  The
+rendered grid runs the first trials of the calibrated one (same seeds, same attitudes), so each
+trial that both keep gives a ratio without the spread between the attitudes, and without the
+difference between which trials survive in each mode, both of which the cell medians carry.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-__all__ = ["cell_medians", "summary_table", "angle_table", "main"]
+__all__ = ["cell_medians", "summary_table", "angle_table", "paired_table", "main"]
 
 #: the distances of the per-distance table, m
 DISTANCES_M = (30, 40, 50, 60, 80, 100)
@@ -112,6 +115,30 @@ def angle_table(rendered: dict, calibrated: dict, angle_deg: float = 10,
     return "\n".join(lines)
 
 
+#: quantities of the paired table: store variable, row label
+_PAIRED = (("crlb_deg", "Cramér–Rao bound per step"), ("step_rms_deg", "per-step RMS error"),
+           ("e_dtheta_deg", "e_Δθ (003 eq 33)"), ("n_tracks", "tracks per epoch"))
+
+
+def paired_table(rendered: xr.Dataset, calibrated: xr.Dataset, near_m: float = 50.0) -> str:
+    """Per quantity: the median [quartiles] over the trials both grids keep (the rendered grid's trials,
+    the same trials of the calibrated one) of the per-trial ratio rendered / calibrated, for the cells
+    up to ``near_m`` and beyond it."""
+    cal = calibrated.isel(trial=slice(0, rendered.sizes["trial"])).sel(
+        distance_m=rendered.distance_m, axis_angle_deg=rendered.axis_angle_deg, n_views=rendered.n_views)
+    lines = [f"| per trial, rendered / calibrated | cells to {near_m:g} m | cells beyond |", "|---|---|---|"]
+    for var, label in _PAIRED:
+        ratio = rendered[var] / cal[var]
+        cells = []
+        for part in (ratio.where(ratio.distance_m <= near_m), ratio.where(ratio.distance_m > near_m)):
+            x = part.values.ravel()
+            x = x[np.isfinite(x) & (x > 0)]
+            cells.append("—" if x.size == 0 else
+                         f"{np.median(x):.2f} [{np.quantile(x, 0.25):.2f}–{np.quantile(x, 0.75):.2f}], {x.size} trials")
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """Command line: the two runs' directories, the angle of the per-distance table."""
     ap = argparse.ArgumentParser(prog="python -m experiments.studies.rendered_vs_calibrated",
@@ -123,10 +150,13 @@ def main(argv: Sequence[str] | None = None) -> None:
     for name in ("rendered", "calibrated"):
         if not (getattr(args, name) / "sweep.zarr").is_dir():
             ap.error(f"{name}: no sweep.zarr in {str(getattr(args, name))!r}")
-    rendered, calibrated = cell_medians(_open(args.rendered)), cell_medians(_open(args.calibrated))
+    r_ds, c_ds = _open(args.rendered), _open(args.calibrated)
+    rendered, calibrated = cell_medians(r_ds), cell_medians(c_ds)
     print(summary_table(rendered, calibrated))
     print(f"\nAt γ = {args.angle:g}°, per cell: tracks per epoch, per-step RMS error, bound, steps refused:\n")
     print(angle_table(rendered, calibrated, args.angle))
+    print("\nTrial by trial, the trials both grids keep:\n")
+    print(paired_table(r_ds, c_ds))
 
 
 if __name__ == "__main__":
