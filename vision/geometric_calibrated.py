@@ -174,12 +174,15 @@ def _components(adj: np.ndarray) -> np.ndarray:
     return reach[np.arange(N), root]
 
 
-def _thin_full_tracks(seen: np.ndarray, share: float, rng: np.random.Generator) -> np.ndarray:
+def _thin_full_tracks(seen: np.ndarray, share: float, rng: np.random.Generator,
+                      cos_view: np.ndarray | None = None) -> np.ndarray:
     """``seen (M, 3)`` with no larger a share of tracks in all three views than ``share`` (measured on
     rendered images, :attr:`SiftCalibration.three_view_track_share`): where the epoch has more, each
     such track keeps its three views with probability ``share`` over the epoch's share, else loses one
-    of them at random.  The shared detection uniform and pair copula put a feature matched in one pair
-    into all three views more often than SIFT does (on the check grid 65 % of the correct tracks
+    of them: the one that sees its surface most obliquely (smallest ``cos_view (M, 3)``, whose
+    keypoints survive matching least, :mod:`vision.calibration.survival_factors`), or one at random
+    without ``cos_view``.  The shared detection uniform and pair copula put a feature matched in one
+    pair into all three views more often than SIFT does (on the check grid 65 % of the correct tracks
     against 40-46 % rendered)."""
     full = seen.all(axis=1)
     f = float(np.mean(full)) if len(seen) else 0.0
@@ -187,6 +190,8 @@ def _thin_full_tracks(seen: np.ndarray, share: float, rng: np.random.Generator) 
     if f <= share:
         return seen
     drop = np.flatnonzero(full & (u >= share / f))
+    if cos_view is not None:                       # the view that sees the surface most obliquely
+        which = np.argmin(cos_view, axis=1)
     out = seen.copy()
     out[drop, which[drop]] = False
     return out
@@ -365,7 +370,8 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         fid = two[is_track]                                               # local (candidate) indices
         seen = members[is_track]                                          # (M, n)
         if n == 3 and min_views == 2 and np.isfinite(cal.three_view_track_share):   # measured with min_views 2
-            seen = _thin_full_tracks(seen, cal.three_view_track_share, rng)
+            seen = _thin_full_tracks(seen, cal.three_view_track_share, rng,
+                                     np.abs(g.cos_view[k][:, cand[fid]]).T)
         # association state: keep, renew or (false association) take another feature's descriptor
         if prev is not None:
             change = float(np.mean(_rotation_angle_deg(g.R_CT[k] @ np.swapaxes(prev[0], -1, -2))))

@@ -189,6 +189,11 @@ def test_three_view_tracks_are_thinned_to_the_measured_share():
     counts = np.bincount(np.argmin(out[dropped], axis=1), minlength=3) / dropped.sum()
     np.testing.assert_allclose(counts, 1 / 3, atol=0.025)          # 3.8 binomial sigma
     assert np.array_equal(_thin_full_tracks(seen, 0.75, np.random.default_rng(1)), seen)
+    # with the view angles, a thinned track loses its most oblique view
+    cos_view = np.random.default_rng(3).random(seen.shape)
+    out = _thin_full_tracks(seen, 0.45, np.random.default_rng(2), cos_view)
+    dropped = seen.all(axis=1) & ~out.all(axis=1)
+    assert np.array_equal(np.argmin(out[dropped], axis=1), np.argmin(cos_view[dropped], axis=1))
 
 
 def test_the_calibrated_mode_keeps_the_measured_share_of_three_view_tracks(fy1):
