@@ -367,6 +367,11 @@ def nees_table(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _joined(paths: str) -> dict:
+    """The cells of the comma-separated result files ``paths`` joined into one result."""
+    return {"cells": [c for p in paths.split(",") for c in json.loads(Path(p).read_text(encoding="utf-8"))["cells"]]}
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """Run the check grid for one target and mode; write a JSON of per-cell medians and per-trial values."""
     ap = argparse.ArgumentParser(prog="python -m experiments.studies.fidelity_check", description=__doc__.split("\n")[0])
@@ -387,14 +392,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--out", type=Path)
     a = ap.parse_args(argv)
     if a.table:
-        r, f, g = ({"cells": [c for p in arg.split(",") for c in json.loads(Path(p).read_text(encoding="utf-8"))["cells"]]}
-                   for arg in a.table)
-        print(markdown_table(r, f, g))
+        print(markdown_table(*(_joined(arg) for arg in a.table)))
         return
     if a.paired_table:
-        r, g = ({"cells": [c for p in arg.split(",") for c in json.loads(Path(p).read_text(encoding="utf-8"))["cells"]]}
-                for arg in a.paired_table)
-        print(paired_table(r, g))
+        print(paired_table(*(_joined(arg) for arg in a.paired_table)))
         return
     if a.nees_table:
         print(nees_table([json.loads(Path(p).read_text(encoding="utf-8")) for p in a.nees_table]))

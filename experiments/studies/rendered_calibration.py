@@ -584,15 +584,15 @@ def _target_summary(spec: CalibrationSpec, target: Target, per_range: Sequence[_
             "false_rate": [_ratio(t.ep["associations"] - t.ep["correct"], t.ep["associations"]) for t in per_range],
         },
     }
+    # the tables so far (the range-and-angle survival, the sequential density and material factors)
+    cal = SiftCalibration.from_dict({"targets": {"t": out}}, "t")
     # joint counts pooled over ranges and angles: correct, and expected at the range-and-angle table
-    S = SiftCalibration.from_dict({"targets": {"t": out}}, "t").pair_survival                    # (R, A)
     joint = {k: np.stack([t.cv_joint[k] for t in per_range]) for k in ("matchable", "correct")}   # (R, A, P, M, B, V)
-    out["cross_view"].update(joint_expected=np.einsum("rapmbv,ra->pmbv", joint["matchable"], S).round(3).tolist(),
-                             joint_correct=joint["correct"].sum(axis=(0, 1)).tolist())
+    out["cross_view"].update(joint_expected=np.einsum("rapmbv,ra->pmbv", joint["matchable"], cal.pair_survival)
+                             .round(3).tolist(), joint_correct=joint["correct"].sum(axis=(0, 1)).tolist())
     # the sequential brightness factor's denominator (files read without the joint fit), then the
     # joint counts per (brightness, view, Sun, material) bin (vision.calibration.detection_factors)
     area = np.stack([t.bright_area for t in per_range])
-    cal = SiftCalibration.from_dict({"targets": {"t": out}}, "t")
     out["brightness_expected_keypoints"] = sequential_expected_keypoints(
         cal.density_per_m2, cal.material_factor, area).round(2).tolist()
     out["detection_joint"] = {"area_m2": area.round(4).tolist(),

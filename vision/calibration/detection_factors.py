@@ -32,7 +32,7 @@ import numpy as np
 from vision.calibration.survival_factors import fit_main_effects
 
 __all__ = ["MIN_CELL_AREA_M2", "MIN_EXPECTED_KEYPOINTS", "MIN_MATERIAL_AREA_M2", "detection_factors",
-           "sequential_expected_keypoints"]
+           "detection_tables", "sequential_expected_keypoints", "sequential_factors"]
 
 #: visible area below which a (view, Sun) density cell is the product of its view and Sun margins, m²
 MIN_CELL_AREA_M2 = 2.0
@@ -40,6 +40,55 @@ MIN_CELL_AREA_M2 = 2.0
 MIN_MATERIAL_AREA_M2 = 2.0
 #: keypoints a brightness bin must be expected to hold (at a factor of 1) to get a factor of its own
 MIN_EXPECTED_KEYPOINTS = 20.0
+
+
+def detection_tables(t: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """The density ``(R, V, S)``, material factors ``(R, P)`` (``(R, 1)``: none), brightness factors
+    ``(R, B)`` (None: none) and measured cells ``(R, V, S)`` of a target's section of the calibration
+    file: the joint fit where it has ``detection_joint``, else the sequential factors."""
+    if "detection_joint" in t:
+        return detection_factors(t["detection_joint"]["area_m2"], t["detection_joint"]["keypoints"])
+    return sequential_factors(t)
+
+
+def sequential_factors(t: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """:func:`detection_tables` from the margins alone (files without the joint counts; module
+    docstring): each (view, Sun) cell's keypoints over its area (a sparse cell the product of its
+    range's view and Sun margins), each material's density over the mean, each brightness bin's
+    keypoints over those the two predict (``brightness_expected_keypoints``; pooled over the ranges
+    where a range expects too few, 1 if those too are short)."""
+    kp = np.asarray(t["keypoints"], dtype=float)          # (R, V, S)
+    area = np.asarray(t["visible_area_m2"], dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rho_r = kp.sum(axis=(1, 2)) / area.sum(axis=(1, 2))
+        g_v = (kp.sum(axis=2) / area.sum(axis=2)) / rho_r[:, None]
+        h_s = (kp.sum(axis=1) / area.sum(axis=1)) / rho_r[:, None]
+        cell = kp / area
+    factor = rho_r[:, None, None] * np.nan_to_num(g_v)[:, :, None] * np.nan_to_num(h_s)[:, None, :]
+    measured = area >= MIN_CELL_AREA_M2
+    return np.where(measured, cell, factor), _sequential_material(t), _sequential_brightness(t), measured
+
+
+def _sequential_material(t: dict) -> np.ndarray:
+    if "material_keypoints" not in t:
+        return np.ones((len(t["ranges_m"]), 1))
+    kp = np.asarray(t["material_keypoints"], dtype=float)
+    area = np.asarray(t["material_area_m2"], dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        f = (kp / area) / (kp.sum(axis=1, keepdims=True) / area.sum(axis=1, keepdims=True))
+    f = np.where(area >= MIN_MATERIAL_AREA_M2, f, 1.0)
+    # renormalise so that the area-weighted mean factor stays 1 (the table already holds the mean)
+    return f * area.sum(axis=1, keepdims=True) / np.sum(f * area, axis=1, keepdims=True)
+
+
+def _sequential_brightness(t: dict) -> np.ndarray | None:
+    if "brightness_expected_keypoints" not in t:
+        return None
+    kp = np.asarray(t["brightness_keypoints"], dtype=float)
+    expected = np.asarray(t["brightness_expected_keypoints"], dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        pooled = np.where(expected.sum(0) >= MIN_EXPECTED_KEYPOINTS, kp.sum(0) / expected.sum(0), 1.0)
+        return np.where(expected >= MIN_EXPECTED_KEYPOINTS, kp / expected, pooled[None])
 
 
 def detection_factors(area_m2: np.ndarray, keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -24,8 +24,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from vision.calibration.detection_factors import detection_factors
-from vision.calibration.survival_factors import MIN_EXPECTED_CORRECT as _MIN_EXPECTED_CORRECT
+from vision.calibration.detection_factors import detection_tables
 from vision.calibration.survival_factors import survival_factors
 from vision.calibration.tables import CalibrationTableEmpty
 from vision.calibration.tables import fill_nearest as _fill_nearest
@@ -45,8 +44,6 @@ PHASE_EDGES_DEG = np.array([0.0, 30.0, 60.0, 90.0, 120.0, 150.0, 180.0])
 #: track classes of the σ inflation: a two-camera formation's tracks; a three-camera formation's tracks
 #: matched in all three cameras, or in two of them
 TRACK_CLASSES = ("2 of 2", "3 of 3", "2 of 3")
-#: visible area below which a (view, Sun) density cell is taken from the factorised marginals, m²
-_MIN_CELL_AREA_M2 = 2.0
 #: floor of a bin's σ (a bin whose least-squares σ² came out 0), px
 _MIN_SIGMA_PX = 0.02
 #: pairs a size bin needs at one range to use that range's own σ
@@ -72,31 +69,6 @@ def _sigma_by_range(t: dict) -> np.ndarray:
         ok = np.isfinite(v) & (counts[r] >= _MIN_PAIRS_PER_BIN) & (v >= _MIN_SIGMA_PX)
         rows.append(np.where(ok, v, pooled))
     return np.stack(rows)
-
-
-def _material_factor(t: dict) -> np.ndarray:
-    if "material_keypoints" not in t:
-        return np.ones((len(t["ranges_m"]), 1))
-    kp = np.asarray(t["material_keypoints"], dtype=float)
-    area = np.asarray(t["material_area_m2"], dtype=float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        f = (kp / area) / (kp.sum(axis=1, keepdims=True) / area.sum(axis=1, keepdims=True))
-    f = np.where(area >= _MIN_CELL_AREA_M2, f, 1.0)
-    # renormalise so that the area-weighted mean factor stays 1 (the table already holds the mean)
-    return f * area.sum(axis=1, keepdims=True) / np.sum(f * area, axis=1, keepdims=True)
-
-
-def _brightness_factor(t: dict) -> np.ndarray | None:
-    """Detection factor ``(R, B)`` per range and brightness bin (:mod:`vision.face_brightness`): keypoints
-    over those the density table and material factors predict there; the factor pooled over ranges
-    where fewer than ``_MIN_EXPECTED_CORRECT`` are expected (1 if still short); None without counts."""
-    if "brightness_expected_keypoints" not in t:
-        return None
-    kp = np.asarray(t["brightness_keypoints"], dtype=float)
-    expected = np.asarray(t["brightness_expected_keypoints"], dtype=float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        pooled = np.where(expected.sum(0) >= _MIN_EXPECTED_CORRECT, kp.sum(0) / expected.sum(0), 1.0)
-        return np.where(expected >= _MIN_EXPECTED_CORRECT, kp / expected, pooled[None])
 
 
 def _bin_index(edges: np.ndarray, x: ArrayLike, side: str, lo: int, hi: int) -> np.ndarray:
@@ -252,19 +224,7 @@ class SiftCalibration:
         if target not in data.get("targets", {}):
             raise ValueError(f"target: no calibration for {target!r}; calibrated: {sorted(data.get('targets', {}))}")
         t = data["targets"][target]
-        kp = np.asarray(t["keypoints"], dtype=float)          # (R, V, S)
-        area = np.asarray(t["visible_area_m2"], dtype=float)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rho_r = kp.sum(axis=(1, 2)) / area.sum(axis=(1, 2))
-            g_v = (kp.sum(axis=2) / area.sum(axis=2)) / rho_r[:, None]
-            h_s = (kp.sum(axis=1) / area.sum(axis=1)) / rho_r[:, None]
-            cell = kp / area
-        factor = rho_r[:, None, None] * np.nan_to_num(g_v)[:, :, None] * np.nan_to_num(h_s)[:, None, :]
-        dens, measured = np.where(area >= _MIN_CELL_AREA_M2, cell, factor), area >= _MIN_CELL_AREA_M2
-        mat_f, bright_f = _material_factor(t), _brightness_factor(t)
-        if "detection_joint" in t:           # the joint fit (vision.calibration.detection_factors)
-            dens, mat_f, bright_f, measured = detection_factors(t["detection_joint"]["area_m2"],
-                                                                t["detection_joint"]["keypoints"])
+        dens, mat_f, bright_f, measured = detection_tables(t)     # vision.calibration.detection_factors
         q = [r for r in t["track_size_px_quantiles_by_range"]]
         qfill = next((r for r in q if r is not None), None)
         if qfill is None:
