@@ -391,12 +391,15 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--angles-deg", default="10,20")
     ap.add_argument("--out", type=Path)
     a = ap.parse_args(argv)
-    if a.table:
-        print(markdown_table(*(_joined(arg) for arg in a.table)))
-        return
-    if a.paired_table:
-        print(paired_table(*(_joined(arg) for arg in a.paired_table)))
-        return
+    try:
+        if a.table:
+            print(markdown_table(*(_joined(arg) for arg in a.table)))
+            return
+        if a.paired_table:
+            print(paired_table(*(_joined(arg) for arg in a.paired_table)))
+            return
+    except (OSError, ValueError) as exc:     # a missing or unreadable file, cells in one file only
+        ap.error(f"--table/--paired-table: {exc}")
     if a.nees_table:
         print(nees_table([json.loads(Path(p).read_text(encoding="utf-8")) for p in a.nees_table]))
         return

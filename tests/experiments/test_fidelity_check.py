@@ -7,6 +7,7 @@ import pytest
 from experiments.studies.fidelity_check import (
     CheckCell,
     check_cell,
+    main,
     markdown_table,
     median_ratio_interval,
     paired_ratio_interval,
@@ -78,6 +79,24 @@ def test_paired_ratio_sees_a_bias_that_the_ratio_of_medians_cannot():
     # equal per trial: ratio exactly 1, every metric within; unpaired trials and NaN are dropped
     assert paired_ratio_interval(np.r_[base, 5.0], np.r_[base, np.nan])[:1] == (1.0,)
     assert all(np.isnan(paired_ratio_interval([np.nan], [1.0])))
+
+
+def test_table_commands_refuse_a_missing_file_and_an_unmatched_cell_with_exit_2(tmp_path, capsys):
+    """A result file that is not there, or a geometric cell the rendered file lacks: one line naming
+    the option, exit code 2, no table printed."""
+    import json
+
+    rendered, other = tmp_path / "r.json", tmp_path / "g.json"
+    rendered.write_text(json.dumps(_result(_trials(np.ones(5)))))
+    cell = _result(_trials(np.ones(5)))
+    cell["cells"][0]["distance_m"] = 80.0
+    other.write_text(json.dumps(cell))
+    for args in (["--paired-table", str(rendered), str(tmp_path / "none.json")], ["--paired-table", str(rendered), str(other)]):
+        with pytest.raises(SystemExit) as exc:
+            main(args)
+        assert exc.value.code == 2
+        out, err = capsys.readouterr()
+        assert out == "" and "error: --table/--paired-table: " in err.splitlines()[-1]
 
 
 def test_a_geometric_cell_is_consistent_with_its_own_noise_model():
