@@ -27,9 +27,12 @@ silhouettes).  Then, with the statistics of :mod:`vision.calibration` measured o
    measured size distribution of tracked keypoints at its image scale, one ``v_f`` per feature), the
    measured σ of that size at that image scale times the square root of the measured σ² inflation of
    the track's class and camera angle (``SiftCalibration.sigma_inflation``, as the rendered mode's
-   ``track_sigma_px``), carried as ``track_sigma_px``.  The projection's Gaussian error has that σ; the
-   part the measured *increment* inflation leaves (what cancels between epochs on rendered images)
-   is the feature's own in that view for the whole trial, the rest is drawn anew every epoch.
+   ``track_sigma_px``), carried as ``track_sigma_px``.  The projection's Gaussian error has that σ
+   times the square root of the measured factor of the feature's surface material
+   (``SiftCalibration.material_noise_factors``: on FY-1, keypoints on the MLI err more than on the
+   solar cells), which the σ does not know, as the rendered mode's does not; the part the measured
+   *increment* inflation and factor leave (what cancels between epochs on rendered images) is the
+   feature's own in that view for the whole trial, the rest is drawn anew every epoch.
 4. **False matches** at the measured cross-view rate, made as in the fixed model (a wrong point on
    the first view's ray: epipolar-consistent).
 5. **Association between epochs**: each feature keeps its descriptor from epoch to epoch with the
@@ -304,8 +307,8 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
     det_all = g.vis[:, :, cand]                                           # (E, n, C)
     fp_c = fp[:, :, cand]
     cand_id = ids[cand]                                                   # their indices in feats
-    mat_c = target.triangle_material[feats.triangle_id[cand_id]] \
-        if cal.pair_survival_material_factor is not None \
+    mat_cand = target.triangle_material[feats.triangle_id[cand_id]]       # each candidate's surface material
+    mat_c = mat_cand if cal.pair_survival_material_factor is not None \
         and len(cal.pair_survival_material_factor) == len(target.materials) else None
     # each view's survival factor of its relative brightness and view angle (E, n, C); a pair takes the
     # geometric mean of its two views' (the brightness is NaN where a view does not detect the feature)
@@ -404,18 +407,21 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         if feats.sites is not None:                                       # a site's SIFT diameter at this footprint
             size_px = np.where((gid < len(feats.sites))[:, None], feats.scale_m[gid][:, None] / fp_m, size_px)
         # σ of the size times the measured σ² inflation of the track's class and camera angle (as the
-        # rendered mode's Observation.track_sigma_px); the part of the error that does not cancel in
-        # an increment (the increment inflation) is drawn anew, the rest is the feature's own in
-        # that view for the whole trial
+        # rendered mode's Observation.track_sigma_px, which does not know the surface); the error has
+        # that σ² times its material's measured factor; the part of it that does not cancel in an
+        # increment (the increment inflation and factor) is drawn anew, the rest is the feature's own
+        # in that view for the whole trial
         sig_size = cal.sigma_for_size(size_px, fp_m)
         both = seen[:, :, None] & seen[:, None, :]
         angle = np.max(np.where(both, ang[None], 0.0), axis=(1, 2))
         cls = track_class(seen.sum(axis=1), n)[:, None]
         infl, infl_inc = cal.sigma_inflations(fp_m, angle[:, None], cls)
-        infl_inc = np.minimum(infl_inc, infl)
         sig = sig_size * np.sqrt(infl)
-        uv_e += sig_size[..., None] * (np.sqrt(infl - infl_inc)[..., None] * e_kept[fid]
-                                       + np.sqrt(infl_inc)[..., None] * rng.standard_normal(uv_e.shape))
+        f_mat, f_mat_inc = cal.material_noise_factors(fp_m, mat_cand[fid][:, None])
+        var, var_inc = infl * f_mat, infl_inc * f_mat_inc
+        var_inc = np.minimum(var_inc, var)
+        uv_e += sig_size[..., None] * (np.sqrt(var - var_inc)[..., None] * e_kept[fid]
+                                       + np.sqrt(var_inc)[..., None] * rng.standard_normal(uv_e.shape))
         uv_e[~seen] = np.nan
         desc = _descriptors(state[fid], feats, extra, rng)
         if descriptor_noise > 0:

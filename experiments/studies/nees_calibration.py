@@ -47,7 +47,8 @@ from vision.rendered import detect_views, label_tracks, render_views
 from vision.sensor import SensorModel
 from vision.target import Target, fy1_target, load_mesh
 
-__all__ = ["NeesSpec", "add_triangulation_nees", "increment_nees", "measure_inflation"]
+__all__ = ["MIN_MATERIAL_POINTS", "NeesSpec", "add_triangulation_nees", "increment_nees", "measure_inflation",
+           "track_material"]
 
 
 @dataclass(frozen=True)
@@ -105,6 +106,34 @@ def increment_nees(a, b, q_a: np.ndarray, q_b: np.ndarray, tol_m: float) -> tupl
     return np.einsum("mi,mij,mj->m", d, np.linalg.inv(S), d), ia
 
 
+def track_material(target: Target, X_T: np.ndarray) -> np.ndarray:
+    """Material index of the triangle closest to each body point (``-1`` for NaN points)."""
+    import open3d as o3d
+
+    X = np.asarray(X_T, dtype=float).reshape(-1, 3)
+    out = np.full(len(X), -1, dtype=np.int64)
+    ok = np.isfinite(X).all(axis=1)
+    if ok.any():
+        cp = target.scene.compute_closest_points(o3d.core.Tensor(X[ok].astype(np.float32)))
+        out[ok] = target.triangle_material[cp["primitive_ids"].numpy().astype(np.int64)]
+    return out
+
+
+def _material_factor(sums: np.ndarray, table: np.ndarray, min_points: int) -> np.ndarray:
+    """Per material, the NEES summed over (angle, class) over what the class table (mean NEES) predicts
+    for the same points: ``sums (A, C, P, 2)`` (sum, count), ``table (A, C)``; NaN where fewer than
+    ``min_points`` points."""
+    expected = np.einsum("ac,acp->p", np.nan_to_num(table), sums[..., 1])
+    n = sums[..., 1].sum(axis=(0, 1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        f = sums[..., 0].sum(axis=(0, 1)) / expected
+    return np.where((n >= min_points) & np.isfinite(f) & (f > 0), f, np.nan)
+
+
+#: points a material needs at one range for its own σ² factor
+MIN_MATERIAL_POINTS = 100
+
+
 def _sun(g: np.random.Generator, axis: np.ndarray, max_deg: float) -> np.ndarray:
     while True:
         sun = g.normal(size=3)
@@ -135,11 +164,14 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
     """The NEES tables of one target: ``seeds[r]`` holds the attitude seed sequences of range r (the
     NEES step takes the third child of each, so the other calibration draws are unchanged)."""
     A, Cn = len(spec.angles_deg), len(TRACK_CLASSES)
-    tabs = {k: [] for k in ("mean", "median", "plain", "inc", "inc_median", "n", "n_inc", "epoch", "inc_epoch")}
+    tabs = {k: [] for k in ("mean", "median", "plain", "inc", "inc_median", "n", "n_inc", "epoch", "inc_epoch",
+                            "mat", "mat_inc", "mat_n", "mat_n_inc")}
+    P = len(target.materials)
     per_epoch = []                       # (mean NEES of the size σ, variance factor) of epochs with >= 8 points
     f_px = float(np.sqrt(camera.K[0, 0] * camera.K[1, 1]))
     for range_m in ranges_m:
         acc = _Sums(A, Cn)
+        mat_sums = {k: np.zeros((A, Cn, P, 2)) for k in ("nees", "inc")}   # (sum, count) per angle, class, material
         for ss in seeds[ranges_m.index(range_m)][: int(spec.attitudes)]:
             g = np.random.default_rng(child_seeds(ss, 3)[2])
             q = quat_normalize(g.normal(size=4))
@@ -165,6 +197,8 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
                     acc.add("nees", a, cls, res.nees)
                     acc.add("nees_epoch", a, cls, res.nees / s2)
                     acc.add("plain", a, cls, res.nees_plain)
+                    mat = track_material(target, obs.X_T_true[res.index])
+                    np.add.at(mat_sums["nees"], (a, cls[mat >= 0], mat[mat >= 0]), np.c_[res.nees[mat >= 0], np.ones(int((mat >= 0).sum()))])
                     if res.nees.size >= 8:
                         per_epoch.append((float(np.mean(res.nees)), s2))
                     eb = None if epochs[1][1] is None else _epoch(camera, views.T_CW[:n_cam], epochs[1][1][:n_cam],
@@ -173,6 +207,8 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
                         v, ia = increment_nees((obs, tri), eb[:2], q, q2, float(range_m) / f_px)
                         acc.add("inc", a, track_class(tri.views_used[ia].sum(axis=1), n_cam), v)
                         acc.add("inc_epoch", a, track_class(tri.views_used[ia].sum(axis=1), n_cam), v / s2)
+                        mat, ci = track_material(target, obs.X_T_true[ia]), track_class(tri.views_used[ia].sum(axis=1), n_cam)
+                        np.add.at(mat_sums["inc"], (a, ci[mat >= 0], mat[mat >= 0]), np.c_[v[mat >= 0], np.ones(int((mat >= 0).sum()))])
             if progress:
                 progress()
         tabs["mean"].append(acc.table("nees", np.mean))
@@ -184,6 +220,10 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
         tabs["n_inc"].append(acc.table("inc", np.size))
         tabs["epoch"].append(acc.table("nees_epoch", np.mean))
         tabs["inc_epoch"].append(acc.table("inc_epoch", np.mean))
+        tabs["mat"].append(_material_factor(mat_sums["nees"], tabs["mean"][-1], MIN_MATERIAL_POINTS))
+        tabs["mat_inc"].append(_material_factor(mat_sums["inc"], tabs["inc"][-1], MIN_MATERIAL_POINTS))
+        tabs["mat_n"].append(mat_sums["nees"][..., 1].sum(axis=(0, 1)).astype(int).tolist())
+        tabs["mat_n_inc"].append(mat_sums["inc"][..., 1].sum(axis=(0, 1)).astype(int).tolist())
 
     def rows(x, nd=4):
         return [[[None if not np.isfinite(v) else round(float(v), nd) for v in c] for c in a] for a in x]
@@ -196,6 +236,11 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
         "epoch_sigma2_inflation": rows(np.array(tabs["epoch"]) / 3.0),
         "epoch_increment_sigma2_inflation": rows(np.array(tabs["inc_epoch"]) / 3.0),
         "epoch_log_nees_spread": _spread(per_epoch),
+        "material_sigma2_factor": [[None if not np.isfinite(v) else round(float(v), 4) for v in r] for r in tabs["mat"]],
+        "material_increment_sigma2_factor": [[None if not np.isfinite(v) else round(float(v), 4) for v in r]
+                                             for r in tabs["mat_inc"]],
+        "material_points": tabs["mat_n"],
+        "material_increment_pairs": tabs["mat_n_inc"],
         "points": np.nan_to_num(np.array(tabs["n"])).astype(int).tolist(),
         "increment_pairs": np.nan_to_num(np.array(tabs["n_inc"])).astype(int).tolist(),
         "nees_mean_size_sigma": rows(tabs["mean"], 3),

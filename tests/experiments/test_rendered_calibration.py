@@ -103,3 +103,33 @@ def test_nees_only_adds_the_inflation_and_keeps_the_other_tables(tmp_path):
     tn = t["triangulation_nees"]                 # the tables beyond each epoch's variance factor, same shape
     assert np.shape(tn["epoch_sigma2_inflation"]) == np.shape(tn["sigma2_inflation"])
     assert np.shape(tn["epoch_increment_sigma2_inflation"]) == np.shape(tn["increment_sigma2_inflation"])
+    # per range and surface material: the NEES factors and the points they rest on
+    shape = (len(t["ranges_m"]), len(t["materials"]))
+    for key in ("material_sigma2_factor", "material_increment_sigma2_factor", "material_points",
+                "material_increment_pairs"):
+        assert np.shape(tn[key]) == shape, key
+    assert sum(map(sum, tn["material_points"])) == sum(np.ravel(tn["points"]))
+
+
+def test_track_material_is_the_material_of_the_surface_a_ray_hits():
+    """Points where rays from outside hit FY-1 (what a rendered track's truth point is) get the hit
+    triangle's material; NaN points get -1."""
+    import open3d as o3d
+
+    from experiments.studies.nees_calibration import track_material
+    from vision.target import fy1_target
+
+    t = fy1_target()
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=(2000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    origin = -20.0 * d + rng.normal(scale=0.5, size=(2000, 3))  # 20 m out, aimed near the centre
+    hits = t.scene.cast_rays(o3d.core.Tensor(np.c_[origin, d].astype(np.float32)))
+    th = hits["t_hit"].numpy()
+    hit = np.isfinite(th)
+    assert hit.sum() > 500
+    X = origin[hit] + th[hit, None] * d[hit]
+    got = track_material(t, np.vstack([X, np.full((1, 3), np.nan)]))
+    assert got[-1] == -1
+    want = t.triangle_material[hits["primitive_ids"].numpy().astype(np.int64)[hit]]
+    assert np.mean(got[:-1] == want) > 0.995

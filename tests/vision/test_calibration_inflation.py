@@ -123,3 +123,57 @@ def test_the_shipped_epoch_factor_explains_part_of_the_epochs_spread(data):
         assert s["over_epoch_factor"] < 0.8 * s["size_sigma"] and s["correlation"] > 0.5
         cal = load_calibration(name)
         assert cal.epoch_sigma2_inflation.shape == cal.sigma2_inflation.shape
+
+
+def test_material_factors_interpolate_in_footprint_and_default_to_one(data):
+    """The σ² factors of a surface material: the table's value at each calibrated image scale, linear in
+    log footprint between them and held beyond; 1 for a file without them and for an unknown material."""
+    d = _with_table(data)
+    P = len(d["targets"]["fy1"]["materials"])
+    plain = SiftCalibration.from_dict(d, "fy1")
+    fp = plain.footprint_m_per_px
+    g, h = plain.material_noise_factors(fp, np.array([0, 1]))
+    assert np.all(g == 1.0) and np.all(h == 1.0)
+    f = np.arange(1, P + 1, dtype=float)
+    d["targets"]["fy1"]["triangulation_nees"]["material_sigma2_factor"] = [list(f), list(2 * f)]
+    d["targets"]["fy1"]["triangulation_nees"]["material_increment_sigma2_factor"] = [list(f / 2), list(f)]
+    cal = SiftCalibration.from_dict(d, "fy1")
+    g, h = cal.material_noise_factors(fp[:, None], np.arange(P)[None, :])
+    np.testing.assert_allclose(g, [f, 2 * f])
+    np.testing.assert_allclose(h, [f / 2, f])
+    mid = np.sqrt(fp[0] * fp[1])                                  # halfway in log footprint
+    g, _ = cal.material_noise_factors(np.array([mid, fp[0] / 3, fp[1] * 3]), np.array([2, 2, 2]))
+    np.testing.assert_allclose(g, [1.5 * f[2], f[2], 2 * f[2]])
+    g, h = cal.material_noise_factors(fp[0], np.array([-1, P]))
+    assert np.all(g == 1.0) and np.all(h == 1.0)
+    # a material measured too little at one range (None) takes the other range's factor; at none, 1
+    tn = d["targets"]["fy1"]["triangulation_nees"]
+    tn["material_sigma2_factor"][1][0] = None
+    tn["material_sigma2_factor"][0][1] = tn["material_sigma2_factor"][1][1] = None
+    g, _ = SiftCalibration.from_dict(d, "fy1").material_noise_factors(fp[1], np.array([0, 1]))
+    np.testing.assert_allclose(g, [f[0], 1.0])
+
+
+def test_material_factor_is_the_nees_over_what_the_class_tables_predict():
+    """Per material: summed NEES over the class table's mean times the material's points in each
+    (angle, class); a material with too few points has none (NaN); the factors weighted by the NEES the
+    class tables predict for each material average to 1 where every material counts."""
+    from experiments.studies.nees_calibration import _material_factor
+
+    rng = np.random.default_rng(3)
+    A, C, P = 2, 3, 4
+    counts = rng.integers(50, 400, size=(A, C, P)).astype(float)
+    truth = np.array([0.5, 1.0, 2.0, 4.0])
+    scale = rng.uniform(1.0, 5.0, size=(A, C))                    # the classes' own NEES levels
+    sums = np.stack([counts * scale[:, :, None] * truth, counts], axis=-1)
+    table = sums[..., 0].sum(axis=2) / counts.sum(axis=2)         # the class tables' mean NEES
+    f = _material_factor(sums, table, 100)
+    expected = np.einsum("ac,acp->p", table, counts)
+    np.testing.assert_allclose(np.sum(f * expected) / np.sum(expected), 1.0, rtol=1e-12)
+    # with one table value everywhere the factor is the material's mean NEES over it
+    flat = np.stack([counts * truth, counts], axis=-1)
+    f1 = _material_factor(flat, np.full((A, C), 1.5), 100)
+    np.testing.assert_allclose(f1, truth / 1.5, rtol=1e-12)
+    few = sums.copy()
+    few[:, :, 3] = [10.0, 1.0]                                    # fourth material: 6 points in all
+    assert np.isnan(_material_factor(few, table, 100)[3])

@@ -29,44 +29,53 @@ def _trial(target, T, E, step_deg, seed):
     feats = surface_features(target, n_features=calibrated_feature_count(CAM, target, T))
     obs = observe_epochs(CAM, np.broadcast_to(T, (E, *T.shape)), target, q, np.broadcast_to(SUN, (E, 3)),
                          rng=seed, features=feats, noise_model="calibrated")
-    return q, obs
+    return q, obs, feats
 
 
 def test_pixel_noise_has_the_calibrated_sigma_of_each_keypoint_size(fy1):
-    """Track σ = size σ × √(σ² inflation of the track's class and angle), and (uv − true projection) / track σ
-    is unit normal per axis over the correct tracks."""
+    """Track σ = size σ × √(σ² inflation of the track's class and angle), as the rendered mode's; the error
+    (uv − true projection) / (track σ × √(factor of the feature's material)) is unit normal per axis over
+    the correct tracks, on the MLI and on the solar cells alike, whose errors differ by their factors."""
     T = three_cameras(40.0, 10.0)
-    q, obs = _trial(fy1, T, 6, 0.87, 1)
     cal = load_calibration("fy1")
-    zs = []
-    for o, qk in zip(obs, q, strict=True):
-        good = o.feature_id >= 0
-        X_H = o.X_T_true[good] @ matrix_from_quat(qk).T
-        z = np.stack([(X_H @ T[i, :3, :3].T + T[i, :3, 3])[:, 2] for i in range(3)], axis=1)   # depth, m
-        sg = o.seen[good]
-        seen = o.seen[good]
-        both = seen[:, :, None] & seen[:, None, :]
-        c = np.stack([-T[i, :3, :3].T @ T[i, :3, 3] for i in range(3)])
-        c /= np.linalg.norm(c, axis=1, keepdims=True)
-        pair = np.degrees(np.arccos(np.clip(c @ c.T, -1.0, 1.0)))
-        angle = np.max(np.where(both, pair[None], 0.0), axis=(1, 2))[:, None]
-        infl = cal.sigma_inflation(z / CAM.K[0, 0], angle, track_class(seen.sum(axis=1), 3)[:, None])
-        expected = cal.sigma_for_size(o.keypoint_size_px[good], z / CAM.K[0, 0]) * np.sqrt(infl)
-        np.testing.assert_allclose(o.track_sigma_px[good][sg], expected[sg], rtol=1e-9)
-        for i in range(3):
-            s = o.seen[good, i]
-            uv, _ = CAM.project_world(X_H[s], T[i])
-            zs.append((o.uv_px[good][s, i] - uv) / o.track_sigma_px[good][s, i, None])
-    z = np.concatenate(zs).ravel()
+    zs, mats = [], []
+    for q, obs, feats in (_trial(fy1, T, 6, 0.87, seed) for seed in (1, 3)):    # seed 3 sees the solar cells
+        for o, qk in zip(obs, q, strict=True):
+            good = o.feature_id >= 0
+            X_H = o.X_T_true[good] @ matrix_from_quat(qk).T
+            z = np.stack([(X_H @ T[i, :3, :3].T + T[i, :3, 3])[:, 2] for i in range(3)], axis=1)   # depth, m
+            seen = o.seen[good]
+            both = seen[:, :, None] & seen[:, None, :]
+            c = np.stack([-T[i, :3, :3].T @ T[i, :3, 3] for i in range(3)])
+            c /= np.linalg.norm(c, axis=1, keepdims=True)
+            pair = np.degrees(np.arccos(np.clip(c @ c.T, -1.0, 1.0)))
+            angle = np.max(np.where(both, pair[None], 0.0), axis=(1, 2))[:, None]
+            infl = cal.sigma_inflation(z / CAM.K[0, 0], angle, track_class(seen.sum(axis=1), 3)[:, None])
+            expected = cal.sigma_for_size(o.keypoint_size_px[good], z / CAM.K[0, 0]) * np.sqrt(infl)
+            np.testing.assert_allclose(o.track_sigma_px[good][seen], expected[seen], rtol=1e-9)
+            mat = fy1.triangle_material[feats.triangle_id[o.feature_id[good]]]
+            f_mat, _ = cal.material_noise_factors(z / CAM.K[0, 0], mat[:, None])
+            for i in range(3):
+                s = seen[:, i]
+                uv, _ = CAM.project_world(X_H[s], T[i])
+                zs.append((o.uv_px[good][s, i] - uv) / (o.track_sigma_px[good][s, i] * np.sqrt(f_mat[s, i]))[:, None])
+                mats.append(np.repeat(mat[s], 2))
+    z, mat = np.concatenate(zs).ravel(), np.concatenate(mats)
     assert z.size > 400
     assert abs(np.std(z) - 1.0) < 0.06 and abs(np.mean(z)) < 0.1
+    names = [m.name for m in fy1.materials]
+    mli, cells = names.index("MLI gold (bus sides)"), names.index("solar cells")
+    for m in (mli, cells):
+        assert (mat == m).sum() > 100 and abs(np.std(z[mat == m]) - 1.0) < 0.1
+    f = cal.material_noise_factors(cal.footprint_m_per_px[0], np.array([mli, cells]))[0]
+    assert f[0] > 1.5 * f[1]                                       # the MLI errs more than the solar cells
 
 
 def test_descriptors_survive_the_step_between_epochs_at_the_calibrated_rate(fy1):
     """Features tracked at consecutive epochs keep their descriptor with the measured survival."""
     T = three_cameras(40.0, 10.0)
     step = 10.0
-    q, obs = _trial(fy1, T, 8, step, 2)
+    q, obs, _ = _trial(fy1, T, 8, step, 2)
     cal = load_calibration("fy1")
     kept, total = 0, 0
     for a, b in zip(obs[:-1], obs[1:], strict=True):

@@ -95,13 +95,24 @@ def track_class(n_track_views: ArrayLike, n_cameras: int) -> np.ndarray:
     return np.where(k >= min(int(n_cameras), 3), 1, 2)
 
 
+def _material_table(rows: list) -> np.ndarray:
+    """``(R, P)`` material factors: a material measured too little at one range (None) takes the nearest
+    range's factor, and 1 where no range measured it."""
+    tab = np.array([[np.nan if v is None else float(v) for v in r] for r in rows])
+    for p in range(tab.shape[1]):
+        if np.isfinite(tab[:, p]).any():
+            tab[:, p] = _fill_nearest(list(tab[:, p]))
+    return np.where(np.isfinite(tab), tab, 1.0)
+
+
 def _inflation(t: dict) -> dict:
     """The σ² inflation table of a target (absent in files before it: inflation 1)."""
     nees = t.get("triangulation_nees")
     if nees is None:
         ones = np.ones((len(t["ranges_m"]), 1, len(TRACK_CLASSES)))
         return {"nees_angle_deg": np.array([10.0]), "sigma2_inflation": ones, "increment_sigma2_inflation": ones,
-                "epoch_sigma2_inflation": None, "epoch_increment_sigma2_inflation": None}
+                "epoch_sigma2_inflation": None, "epoch_increment_sigma2_inflation": None,
+                "material_sigma2_factor": None, "material_increment_sigma2_factor": None}
 
     def table(key: str) -> np.ndarray:
         rows = []
@@ -113,11 +124,13 @@ def _inflation(t: dict) -> dict:
             rows.append(np.where(np.isfinite(tab), tab, np.nanmean(tab, axis=1, keepdims=True)))
         return np.stack(rows)
 
+    mat = {k: _material_table(nees[k]) if k in nees else None      # files before the material factors
+           for k in ("material_sigma2_factor", "material_increment_sigma2_factor")}
     epoch = "epoch_sigma2_inflation" in nees          # files before the epoch factor have only the tables
     return {"nees_angle_deg": np.asarray(nees["angle_deg"], dtype=float), "sigma2_inflation": table("sigma2_inflation"),
             "increment_sigma2_inflation": table("increment_sigma2_inflation"),
             "epoch_sigma2_inflation": table("epoch_sigma2_inflation") if epoch else None,
-            "epoch_increment_sigma2_inflation": table("epoch_increment_sigma2_inflation") if epoch else None}
+            "epoch_increment_sigma2_inflation": table("epoch_increment_sigma2_inflation") if epoch else None, **mat}
 
 
 @dataclass(frozen=True, eq=False)
@@ -185,6 +198,10 @@ class SiftCalibration:
     epoch_sigma2_inflation, epoch_increment_sigma2_inflation : ndarray (R, A, len(TRACK_CLASSES)) or None
         The same two over the epoch's variance factor (:func:`vision.epoch_variance.epoch_variance_factor`
         of the size σ): the σ² beyond what the epoch's residuals show (None in files without them).
+    material_sigma2_factor, material_increment_sigma2_factor : ndarray (R, P) or None
+        The NEES and increment NEES of keypoints on each of the target's P surface materials over what
+        the class tables give them (point-weighted mean 1; None in files without them): how the
+        errors depend on a surface no estimator sees (:meth:`material_noise_factors`).
     """
 
     target: str
@@ -210,6 +227,8 @@ class SiftCalibration:
     increment_sigma2_inflation: np.ndarray | None = None
     epoch_sigma2_inflation: np.ndarray | None = None
     epoch_increment_sigma2_inflation: np.ndarray | None = None
+    material_sigma2_factor: np.ndarray | None = None
+    material_increment_sigma2_factor: np.ndarray | None = None
     pair_survival_phase_factor: np.ndarray | None = None
     phase_edges_deg: np.ndarray = field(default_factory=lambda: PHASE_EDGES_DEG.copy())
     pair_survival_material_factor: np.ndarray | None = None
@@ -323,6 +342,20 @@ class SiftCalibration:
         (the interpolation weights computed once)."""
         return self._inflation_at((self.sigma2_inflation, self.increment_sigma2_inflation),
                                   footprint_m_per_px, angle_deg, track_class)
+
+    def material_noise_factors(self, footprint_m_per_px: ArrayLike,
+                               material: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """The σ² factors of a keypoint's error (triangulated point, increment) on this surface material
+        at this image scale (interpolated in log footprint, held beyond the calibrated ones); ones where
+        the file has none or ``material`` is outside its table."""
+        fp, m = np.broadcast_arrays(np.asarray(footprint_m_per_px, dtype=float), np.asarray(material, dtype=int))
+        tabs = (self.material_sigma2_factor, self.material_increment_sigma2_factor)
+        if tabs[0] is None or tabs[1] is None:
+            return np.ones(fp.shape), np.ones(fp.shape)
+        inside = (m >= 0) & (m < tabs[0].shape[1])
+        col = np.where(inside, m, 0)
+        weights = self._clipped_range_weights(fp)
+        return tuple(np.where(inside, self._by_range(t, fp, col, weights), 1.0) for t in tabs)
 
     def _inflation_at(self, tables: tuple, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike,
                       track_class: ArrayLike) -> list[np.ndarray]:
