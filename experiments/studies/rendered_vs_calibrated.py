@@ -33,19 +33,21 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-__all__ = ["cell_medians", "summary_table", "angle_table", "paired_table", "main"]
+__all__ = ["cell_medians", "open_store", "steps_per_trial", "summary_table", "angle_table", "paired_table", "main"]
 
 #: the distances of the per-distance table, m
 DISTANCES_M = (30, 40, 50, 60, 80, 100)
 
 
-def _open(run: Path) -> xr.Dataset:
+def open_store(run: Path) -> xr.Dataset:
+    """The sweep store of a run folder (``RUN/sweep.zarr``), loaded."""
     with warnings.catch_warnings():  # the sweeps' stores have no consolidated metadata
         warnings.simplefilter("ignore", RuntimeWarning)
         return xr.open_zarr(Path(run) / "sweep.zarr", consolidated=False).load()
 
 
-def _steps(ds: xr.Dataset) -> int:
+def steps_per_trial(ds: xr.Dataset) -> int:
+    """Registration steps per trial of the store's error map (its config and overrides; default 10)."""
     steps = tomllib.loads(ds.attrs.get("config_toml", "")).get("error_map", {}).get("steps", 10)
     return int(json.loads(ds.attrs.get("overrides", "{}")).get("error_map.steps", steps))
 
@@ -55,7 +57,7 @@ def cell_medians(ds: xr.Dataset) -> dict[str, xr.DataArray]:
     out = {k: ds[v].median("trial", skipna=True) for k, v in
            (("tracks", "n_tracks"), ("e", "e_dtheta_deg"), ("step", "step_rms_deg"), ("crlb", "crlb_deg"))}
     failed = ds["failed_steps"]  # NaN for a trial refused outright
-    out["refused"] = 100.0 * failed.sum("trial", skipna=True) / (_steps(ds) * failed.notnull().sum("trial"))
+    out["refused"] = 100.0 * failed.sum("trial", skipna=True) / (steps_per_trial(ds) * failed.notnull().sum("trial"))
     return out
 
 
@@ -150,7 +152,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     for name in ("rendered", "calibrated"):
         if not (getattr(args, name) / "sweep.zarr").is_dir():
             ap.error(f"{name}: no sweep.zarr in {str(getattr(args, name))!r}")
-    r_ds, c_ds = _open(args.rendered), _open(args.calibrated)
+    r_ds, c_ds = open_store(args.rendered), open_store(args.calibrated)
     rendered, calibrated = cell_medians(r_ds), cell_medians(c_ds)
     print(summary_table(rendered, calibrated))
     print(f"\nAt γ = {args.angle:g}°, per cell: tracks per epoch, per-step RMS error, bound, steps refused:\n")
