@@ -47,7 +47,7 @@ from vision.rendered import detect_views, label_tracks, render_views
 from vision.sensor import SensorModel
 from vision.target import Target, fy1_target, load_mesh
 
-__all__ = ["MIN_MATERIAL_POINTS", "NeesSpec", "add_triangulation_nees", "increment_nees", "measure_inflation",
+__all__ = ["MATERIAL_PRIOR_POINTS", "NeesSpec", "add_triangulation_nees", "increment_nees", "measure_inflation",
            "track_material"]
 
 
@@ -119,19 +119,22 @@ def track_material(target: Target, X_T: np.ndarray) -> np.ndarray:
     return out
 
 
-def _material_factor(sums: np.ndarray, table: np.ndarray, min_points: int) -> np.ndarray:
+def _material_factor(sums: np.ndarray, table: np.ndarray, prior_points: float) -> np.ndarray:
     """Per material, the NEES summed over (angle, class) over what the class table (mean NEES) predicts
-    for the same points: ``sums (A, C, P, 2)`` (sum, count), ``table (A, C)``; NaN where fewer than
-    ``min_points`` points."""
+    for the same points, ``sums (A, C, P, 2)`` (sum, count), ``table (A, C)``; with ``prior_points``
+    pseudo-points at factor 1 (a material seen little stays near 1; NEES are heavy-tailed, so the mean
+    of a few is far from its expectation).  Without them the factors, weighted by the NEES the tables
+    predict, average to 1."""
     expected = np.einsum("ac,acp->p", np.nan_to_num(table), sums[..., 1])
     n = sums[..., 1].sum(axis=(0, 1))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        f = sums[..., 0].sum(axis=(0, 1)) / expected
-    return np.where((n >= min_points) & np.isfinite(f) & (f > 0), f, np.nan)
+    per_point = np.divide(expected, n, out=np.zeros_like(expected), where=n > 0)
+    prior = prior_points * per_point
+    return np.divide(sums[..., 0].sum(axis=(0, 1)) + prior, expected + prior,
+                     out=np.ones_like(expected), where=expected + prior > 0)
 
 
-#: points a material needs at one range for its own σ² factor
-MIN_MATERIAL_POINTS = 100
+#: pseudo-points at factor 1 in each material's σ² factor
+MATERIAL_PRIOR_POINTS = 100
 
 
 def _sun(g: np.random.Generator, axis: np.ndarray, max_deg: float) -> np.ndarray:
@@ -220,8 +223,8 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
         tabs["n_inc"].append(acc.table("inc", np.size))
         tabs["epoch"].append(acc.table("nees_epoch", np.mean))
         tabs["inc_epoch"].append(acc.table("inc_epoch", np.mean))
-        tabs["mat"].append(_material_factor(mat_sums["nees"], tabs["mean"][-1], MIN_MATERIAL_POINTS))
-        tabs["mat_inc"].append(_material_factor(mat_sums["inc"], tabs["inc"][-1], MIN_MATERIAL_POINTS))
+        tabs["mat"].append(_material_factor(mat_sums["nees"], tabs["mean"][-1], MATERIAL_PRIOR_POINTS))
+        tabs["mat_inc"].append(_material_factor(mat_sums["inc"], tabs["inc"][-1], MATERIAL_PRIOR_POINTS))
         tabs["mat_n"].append(mat_sums["nees"][..., 1].sum(axis=(0, 1)).astype(int).tolist())
         tabs["mat_n_inc"].append(mat_sums["inc"][..., 1].sum(axis=(0, 1)).astype(int).tolist())
 
@@ -236,9 +239,8 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
         "epoch_sigma2_inflation": rows(np.array(tabs["epoch"]) / 3.0),
         "epoch_increment_sigma2_inflation": rows(np.array(tabs["inc_epoch"]) / 3.0),
         "epoch_log_nees_spread": _spread(per_epoch),
-        "material_sigma2_factor": [[None if not np.isfinite(v) else round(float(v), 4) for v in r] for r in tabs["mat"]],
-        "material_increment_sigma2_factor": [[None if not np.isfinite(v) else round(float(v), 4) for v in r]
-                                             for r in tabs["mat_inc"]],
+        "material_sigma2_factor": [[round(float(v), 4) for v in r] for r in tabs["mat"]],
+        "material_increment_sigma2_factor": [[round(float(v), 4) for v in r] for r in tabs["mat_inc"]],
         "material_points": tabs["mat_n"],
         "material_increment_pairs": tabs["mat_n_inc"],
         "points": np.nan_to_num(np.array(tabs["n"])).astype(int).tolist(),

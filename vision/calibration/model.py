@@ -95,16 +95,6 @@ def track_class(n_track_views: ArrayLike, n_cameras: int) -> np.ndarray:
     return np.where(k >= min(int(n_cameras), 3), 1, 2)
 
 
-def _material_table(rows: list) -> np.ndarray:
-    """``(R, P)`` material factors: a material measured too little at one range (None) takes the nearest
-    range's factor, and 1 where no range measured it."""
-    tab = np.array([[np.nan if v is None else float(v) for v in r] for r in rows])
-    for p in range(tab.shape[1]):
-        if np.isfinite(tab[:, p]).any():
-            tab[:, p] = _fill_nearest(list(tab[:, p]))
-    return np.where(np.isfinite(tab), tab, 1.0)
-
-
 def _inflation(t: dict) -> dict:
     """The σ² inflation table of a target (absent in files before it: inflation 1)."""
     nees = t.get("triangulation_nees")
@@ -124,7 +114,7 @@ def _inflation(t: dict) -> dict:
             rows.append(np.where(np.isfinite(tab), tab, np.nanmean(tab, axis=1, keepdims=True)))
         return np.stack(rows)
 
-    mat = {k: _material_table(nees[k]) if k in nees else None      # files before the material factors
+    mat = {k: np.asarray(nees[k], dtype=float) if k in nees else None      # files before the material factors
            for k in ("material_sigma2_factor", "material_increment_sigma2_factor")}
     epoch = "epoch_sigma2_inflation" in nees          # files before the epoch factor have only the tables
     return {"nees_angle_deg": np.asarray(nees["angle_deg"], dtype=float), "sigma2_inflation": table("sigma2_inflation"),
@@ -200,8 +190,8 @@ class SiftCalibration:
         of the size σ): the σ² beyond what the epoch's residuals show (None in files without them).
     material_sigma2_factor, material_increment_sigma2_factor : ndarray (R, P) or None
         The NEES and increment NEES of keypoints on each of the target's P surface materials over what
-        the class tables give them (point-weighted mean 1; None in files without them): how the
-        errors depend on a surface no estimator sees (:meth:`material_noise_factors`).
+        the class tables give them (None in files without them): how the errors depend on a surface
+        no estimator sees (:meth:`material_noise_factors`).
     """
 
     target: str
