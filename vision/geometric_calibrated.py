@@ -30,9 +30,12 @@ silhouettes).  Then, with the statistics of :mod:`vision.calibration` measured o
    ``track_sigma_px``), carried as ``track_sigma_px``.  The projection's Gaussian error has that σ
    times the square root of the measured factor of the feature's surface material
    (``SiftCalibration.material_noise_factors``: on FY-1, keypoints on the MLI err more than on the
-   solar cells), which the σ does not know, as the rendered mode's does not; the part the measured
-   *increment* inflation and factor leave (what cancels between epochs on rendered images) is the
-   feature's own in that view for the whole trial, the rest is drawn anew every epoch.
+   solar cells) and of a lognormal multiplier of mean 1 drawn once per feature and trial with the
+   measured spread (``SiftCalibration.error_spread_at``, :mod:`vision.calibration.scale_mixture`:
+   rendered errors are heavy-tailed), neither of which the σ knows, as the rendered mode's does not.
+   The part the measured *increment* inflation and factor leave (what cancels between epochs on
+   rendered images) is the feature's own in that view for the whole trial, the rest is drawn anew
+   every epoch.
 4. **False matches** at the measured cross-view rate, made as in the fixed model (a wrong point on
    the first view's ray: epipolar-consistent).
 5. **Association between epochs**: each feature keeps its descriptor from epoch to epoch with the
@@ -320,6 +323,7 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
     f_view = np.sqrt(np.prod(f_view, axis=0)) if f_view else None
     v_size = rng.random(C)
     e_kept = rng.standard_normal((C, n, 2))                               # each feature's error kept per view
+    z_spread = rng.standard_normal(C)                                     # each feature's σ² multiplier (its log)
     rho_c, rho_t = _calibration_correlations(cal)
     # copula variables of every candidate's view pairs: a common factor and one per pair, each an
     # AR(1) process over the epochs of the trial with correlation rho_t
@@ -408,9 +412,10 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
             size_px = np.where((gid < len(feats.sites))[:, None], feats.scale_m[gid][:, None] / fp_m, size_px)
         # σ of the size times the measured σ² inflation of the track's class and camera angle (as the
         # rendered mode's Observation.track_sigma_px, which does not know the surface); the error has
-        # that σ² times its material's measured factor; the part of it that does not cancel in an
-        # increment (the increment inflation and factor) is drawn anew, the rest is the feature's own
-        # in that view for the whole trial
+        # that σ² times its material's measured factor and the feature's own lognormal multiplier
+        # (the measured spread: rendered errors are heavy-tailed); the part of it that does not
+        # cancel in an increment (the increment inflation and factor) is drawn anew, the rest is the
+        # feature's own in that view for the whole trial
         sig_size = cal.sigma_for_size(size_px, fp_m)
         both = seen[:, :, None] & seen[:, None, :]
         angle = np.max(np.where(both, ang[None], 0.0), axis=(1, 2))
@@ -418,7 +423,9 @@ def _trial(g, fp, ids, T, fsun, feats, cal, rng, *, target, cams, min_views, des
         infl, infl_inc = cal.sigma_inflations(fp_m, angle[:, None], cls)
         sig = sig_size * np.sqrt(infl)
         f_mat, f_mat_inc = cal.material_noise_factors(fp_m, mat_cand[fid][:, None])
-        var, var_inc = infl * f_mat, infl_inc * f_mat_inc
+        s_w = cal.error_spread_at(fp_m)
+        w = np.exp(s_w * z_spread[fid][:, None] - 0.5 * s_w**2)          # lognormal, mean 1
+        var, var_inc = infl * f_mat * w, infl_inc * f_mat_inc * w
         var_inc = np.minimum(var_inc, var)
         uv_e += sig_size[..., None] * (np.sqrt(var - var_inc)[..., None] * e_kept[fid]
                                        + np.sqrt(var_inc)[..., None] * rng.standard_normal(uv_e.shape))

@@ -40,6 +40,7 @@ from experiments.sweep import child_seeds
 from formation.geometry import symmetric_views
 from reconstruction.triangulation import triangulate
 from vision.calibration import TRACK_CLASSES, SiftCalibration, track_class
+from vision.calibration.scale_mixture import spread_for_median
 from vision.camera import PinholeCamera
 from vision.epoch_variance import epoch_variance_factor
 from vision.features import match_views
@@ -133,8 +134,34 @@ def _material_factor(sums: np.ndarray, table: np.ndarray, prior_points: float) -
                      out=np.ones_like(expected), where=expected + prior > 0)
 
 
+#: degrees of freedom of a triangulated point's NEES per track class (a two-view track's first view
+#: error along the epipolar line cancels against the truth's: rank 2, :mod:`.triangulation_consistency`)
+TRIANGULATION_DOF = np.array([2 if c.startswith("2 ") else 3 for c in TRACK_CLASSES])
 #: pseudo-points at factor 1 in each material's σ² factor
 MATERIAL_PRIOR_POINTS = 100
+
+
+def _material_stats(records: list, table: np.ndarray, n_materials: int, dof_of_class: np.ndarray) -> tuple:
+    """Of one range's points (``records``: arrays of rows angle index, class, material, NEES; ``table``
+    (A, C) the class tables' mean NEES): each material's σ² factor (:func:`_material_factor`) and points;
+    the median and mean of 3 NEES / (table × factor), the spread of the errors beyond the tables and
+    factors (mean 3, and the χ² median of each point's degrees of freedom ``dof_of_class``, for
+    Gaussian errors whose σ is right); and the lognormal scale spread that gives that median
+    (:func:`vision.calibration.scale_mixture.spread_for_median`)."""
+    r = np.concatenate(records) if records else np.zeros((0, 4))
+    a, c, m = (r[:, i].astype(int) for i in range(3))
+    on = m >= 0
+    sums = np.zeros((*table.shape, n_materials, 2))
+    np.add.at(sums, (a[on], c[on], m[on]), np.c_[r[on, 3], np.ones(int(on.sum()))])
+    f = _material_factor(sums, table, MATERIAL_PRIOR_POINTS)
+    norm = 3.0 * r[on, 3] / (table[a[on], c[on]] * f[m[on]])
+    ok = np.isfinite(norm)
+    if not ok.any():
+        return f, sums[..., 1].sum(axis=(0, 1)).astype(int), np.nan, np.nan, np.nan
+    median = float(np.median(norm[ok]))
+    dofs = dof_of_class[c[on][ok]]
+    spread = spread_for_median(median, {int(k): int(np.sum(dofs == k)) for k in np.unique(dofs)})
+    return f, sums[..., 1].sum(axis=(0, 1)).astype(int), median, float(np.mean(norm[ok])), spread
 
 
 def _sun(g: np.random.Generator, axis: np.ndarray, max_deg: float) -> np.ndarray:
@@ -168,13 +195,14 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
     NEES step takes the third child of each, so the other calibration draws are unchanged)."""
     A, Cn = len(spec.angles_deg), len(TRACK_CLASSES)
     tabs = {k: [] for k in ("mean", "median", "plain", "inc", "inc_median", "n", "n_inc", "epoch", "inc_epoch",
-                            "mat", "mat_inc", "mat_n", "mat_n_inc")}
+                            "mat", "mat_inc", "mat_n", "mat_n_inc", "norm_median", "norm_median_inc", "norm_mean",
+                            "norm_mean_inc", "spread", "spread_inc")}
     P = len(target.materials)
     per_epoch = []                       # (mean NEES of the size σ, variance factor) of epochs with >= 8 points
     f_px = float(np.sqrt(camera.K[0, 0] * camera.K[1, 1]))
     for range_m in ranges_m:
         acc = _Sums(A, Cn)
-        mat_sums = {k: np.zeros((A, Cn, P, 2)) for k in ("nees", "inc")}   # (sum, count) per angle, class, material
+        recs = {"nees": [], "inc": []}       # per point: angle index, class, material, NEES
         for ss in seeds[ranges_m.index(range_m)][: int(spec.attitudes)]:
             g = np.random.default_rng(child_seeds(ss, 3)[2])
             q = quat_normalize(g.normal(size=4))
@@ -200,8 +228,8 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
                     acc.add("nees", a, cls, res.nees)
                     acc.add("nees_epoch", a, cls, res.nees / s2)
                     acc.add("plain", a, cls, res.nees_plain)
-                    mat = track_material(target, obs.X_T_true[res.index])
-                    np.add.at(mat_sums["nees"], (a, cls[mat >= 0], mat[mat >= 0]), np.c_[res.nees[mat >= 0], np.ones(int((mat >= 0).sum()))])
+                    recs["nees"].append(np.c_[np.full(cls.size, a), cls, track_material(target, obs.X_T_true[res.index]),
+                                              res.nees])
                     if res.nees.size >= 8:
                         per_epoch.append((float(np.mean(res.nees)), s2))
                     eb = None if epochs[1][1] is None else _epoch(camera, views.T_CW[:n_cam], epochs[1][1][:n_cam],
@@ -210,8 +238,8 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
                         v, ia = increment_nees((obs, tri), eb[:2], q, q2, float(range_m) / f_px)
                         acc.add("inc", a, track_class(tri.views_used[ia].sum(axis=1), n_cam), v)
                         acc.add("inc_epoch", a, track_class(tri.views_used[ia].sum(axis=1), n_cam), v / s2)
-                        mat, ci = track_material(target, obs.X_T_true[ia]), track_class(tri.views_used[ia].sum(axis=1), n_cam)
-                        np.add.at(mat_sums["inc"], (a, ci[mat >= 0], mat[mat >= 0]), np.c_[v[mat >= 0], np.ones(int((mat >= 0).sum()))])
+                        recs["inc"].append(np.c_[np.full(v.size, a), track_class(tri.views_used[ia].sum(axis=1), n_cam),
+                                                 track_material(target, obs.X_T_true[ia]), v])
             if progress:
                 progress()
         tabs["mean"].append(acc.table("nees", np.mean))
@@ -223,10 +251,14 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
         tabs["n_inc"].append(acc.table("inc", np.size))
         tabs["epoch"].append(acc.table("nees_epoch", np.mean))
         tabs["inc_epoch"].append(acc.table("inc_epoch", np.mean))
-        tabs["mat"].append(_material_factor(mat_sums["nees"], tabs["mean"][-1], MATERIAL_PRIOR_POINTS))
-        tabs["mat_inc"].append(_material_factor(mat_sums["inc"], tabs["inc"][-1], MATERIAL_PRIOR_POINTS))
-        tabs["mat_n"].append(mat_sums["nees"][..., 1].sum(axis=(0, 1)).astype(int).tolist())
-        tabs["mat_n_inc"].append(mat_sums["inc"][..., 1].sum(axis=(0, 1)).astype(int).tolist())
+        for key, table, suffix, dof in (("nees", tabs["mean"][-1], "", TRIANGULATION_DOF),
+                                        ("inc", tabs["inc"][-1], "_inc", np.full(Cn, 3))):
+            f, n, med, mean, spread = _material_stats(recs[key], table, P, dof)
+            tabs["mat" + suffix].append(f)
+            tabs["mat_n" + suffix].append(n.tolist())
+            tabs["norm_median" + suffix].append(med)
+            tabs["norm_mean" + suffix].append(mean)
+            tabs["spread" + suffix].append(spread)
 
     def rows(x, nd=4):
         return [[[None if not np.isfinite(v) else round(float(v), nd) for v in c] for c in a] for a in x]
@@ -243,6 +275,12 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
         "material_increment_sigma2_factor": [[round(float(v), 4) for v in r] for r in tabs["mat_inc"]],
         "material_points": tabs["mat_n"],
         "material_increment_pairs": tabs["mat_n_inc"],
+        "normalized_nees_median": [round(float(v), 4) for v in tabs["norm_median"]],
+        "normalized_nees_mean": [round(float(v), 4) for v in tabs["norm_mean"]],
+        "normalized_increment_nees_median": [round(float(v), 4) for v in tabs["norm_median_inc"]],
+        "normalized_increment_nees_mean": [round(float(v), 4) for v in tabs["norm_mean_inc"]],
+        "error_log_spread": [round(float(v), 4) for v in tabs["spread"]],
+        "increment_error_log_spread": [round(float(v), 4) for v in tabs["spread_inc"]],
         "points": np.nan_to_num(np.array(tabs["n"])).astype(int).tolist(),
         "increment_pairs": np.nan_to_num(np.array(tabs["n_inc"])).astype(int).tolist(),
         "nees_mean_size_sigma": rows(tabs["mean"], 3),

@@ -109,6 +109,10 @@ def test_nees_only_adds_the_inflation_and_keeps_the_other_tables(tmp_path):
                 "material_increment_pairs"):
         assert np.shape(tn[key]) == shape, key
     assert sum(map(sum, tn["material_points"])) == sum(np.ravel(tn["points"]))
+    # the spread of the errors beyond the tables, and the lognormal spread that gives it
+    for key in ("normalized_nees_median", "normalized_nees_mean", "error_log_spread", "increment_error_log_spread"):
+        assert len(tn[key]) == len(t["ranges_m"]), key
+    assert all(0.0 <= s <= 4.0 for s in tn["error_log_spread"])
 
 
 def test_track_material_is_the_material_of_the_surface_a_ray_hits():

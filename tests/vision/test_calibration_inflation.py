@@ -174,3 +174,13 @@ def test_material_factor_is_the_nees_over_what_the_class_tables_predict():
     np.testing.assert_allclose(_material_factor(one, np.full((1, 1), 1.5), 100),
                                [(4 * 20 + 100) / 120, (4 * 20000 + 100) / 20100], rtol=1e-12)
     assert _material_factor(np.zeros((1, 1, 1, 2)), np.ones((1, 1)), 100)[0] == 1.0   # never seen: 1
+
+
+def test_error_spread_interpolates_in_footprint_and_is_zero_without_it(data):
+    d = _with_table(data)
+    fp = SiftCalibration.from_dict(d, "fy1").footprint_m_per_px
+    assert np.all(SiftCalibration.from_dict(d, "fy1").error_spread_at(fp) == 0.0)
+    d["targets"]["fy1"]["triangulation_nees"]["error_log_spread"] = [0.6, 1.0]
+    cal = SiftCalibration.from_dict(d, "fy1")
+    np.testing.assert_allclose(cal.error_spread_at(np.array([fp[0], np.sqrt(fp[0] * fp[1]), fp[1], 10 * fp[1]])),
+                               [0.6, 0.8, 1.0, 1.0])

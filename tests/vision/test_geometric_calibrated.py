@@ -2,11 +2,13 @@
 
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 from scipy.special import ndtr
 
 from attitude.quaternion import matrix_from_quat, quat_from_rotvec, quat_multiply, quat_normalize
 from tests.vision.geometric_three_cameras import three_cameras
 from vision.calibration import load_calibration, track_class
+from vision.calibration.scale_mixture import mixture_cdf
 from vision.camera import PinholeCamera
 from vision.geometric import observe_epochs, surface_features
 from vision.geometric_calibrated import (
@@ -34,8 +36,10 @@ def _trial(target, T, E, step_deg, seed):
 
 def test_pixel_noise_has_the_calibrated_sigma_of_each_keypoint_size(fy1):
     """Track σ = size σ × √(σ² inflation of the track's class and angle), as the rendered mode's; the error
-    (uv − true projection) / (track σ × √(factor of the feature's material)) is unit normal per axis over
-    the correct tracks, on the MLI and on the solar cells alike, whose errors differ by their factors."""
+    (uv − true projection) / (track σ × √(factor of the feature's material)) has unit variance per axis
+    over the correct tracks, on the MLI and on the solar cells alike, whose errors differ by their
+    factors; and the heavy tail of the measured lognormal spread: the median of its square is the
+    scale mixture's, well below a Gaussian's (0.455)."""
     T = three_cameras(40.0, 10.0)
     cal = load_calibration("fy1")
     zs, mats = [], []
@@ -62,11 +66,15 @@ def test_pixel_noise_has_the_calibrated_sigma_of_each_keypoint_size(fy1):
                 mats.append(np.repeat(mat[s], 2))
     z, mat = np.concatenate(zs).ravel(), np.concatenate(mats)
     assert z.size > 400
-    assert abs(np.std(z) - 1.0) < 0.06 and abs(np.mean(z)) < 0.1
+    assert abs(np.std(z) - 1.0) < 0.1 and abs(np.mean(z)) < 0.1
     names = [m.name for m in fy1.materials]
     mli, cells = names.index("MLI gold (bus sides)"), names.index("solar cells")
     for m in (mli, cells):
-        assert (mat == m).sum() > 100 and abs(np.std(z[mat == m]) - 1.0) < 0.1
+        assert (mat == m).sum() > 100 and abs(np.std(z[mat == m]) - 1.0) < 0.15
+    spread = float(cal.error_spread_at(40.0 / CAM.K[0, 0]))
+    assert spread > 0.5                                            # rendered errors are heavy-tailed
+    median = brentq(lambda x: mixture_cdf(x, spread, 1, mean=1.0) - 0.5, 1e-6, 10.0)
+    assert np.median(z**2) == pytest.approx(median, rel=0.15) and median < 0.8 * 0.455
     f = cal.material_noise_factors(cal.footprint_m_per_px[0], np.array([mli, cells]))[0]
     assert f[0] > 1.5 * f[1]                                       # the MLI errs more than the solar cells
 

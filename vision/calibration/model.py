@@ -102,7 +102,7 @@ def _inflation(t: dict) -> dict:
         ones = np.ones((len(t["ranges_m"]), 1, len(TRACK_CLASSES)))
         return {"nees_angle_deg": np.array([10.0]), "sigma2_inflation": ones, "increment_sigma2_inflation": ones,
                 "epoch_sigma2_inflation": None, "epoch_increment_sigma2_inflation": None,
-                "material_sigma2_factor": None, "material_increment_sigma2_factor": None}
+                "material_sigma2_factor": None, "material_increment_sigma2_factor": None, "error_log_spread": None}
 
     def table(key: str) -> np.ndarray:
         rows = []
@@ -115,7 +115,7 @@ def _inflation(t: dict) -> dict:
         return np.stack(rows)
 
     mat = {k: np.asarray(nees[k], dtype=float) if k in nees else None      # files before the material factors
-           for k in ("material_sigma2_factor", "material_increment_sigma2_factor")}
+           for k in ("material_sigma2_factor", "material_increment_sigma2_factor", "error_log_spread")}
     epoch = "epoch_sigma2_inflation" in nees          # files before the epoch factor have only the tables
     return {"nees_angle_deg": np.asarray(nees["angle_deg"], dtype=float), "sigma2_inflation": table("sigma2_inflation"),
             "increment_sigma2_inflation": table("increment_sigma2_inflation"),
@@ -192,6 +192,9 @@ class SiftCalibration:
         The NEES and increment NEES of keypoints on each of the target's P surface materials over what
         the class tables give them (None in files without them): how the errors depend on a surface
         no estimator sees (:meth:`material_noise_factors`).
+    error_log_spread : ndarray (R,) or None
+        Standard deviation of the log of a keypoint's σ² multiplier beyond the tables and the material
+        factors (:mod:`vision.calibration.scale_mixture`; None in files without it).
     """
 
     target: str
@@ -219,6 +222,7 @@ class SiftCalibration:
     epoch_increment_sigma2_inflation: np.ndarray | None = None
     material_sigma2_factor: np.ndarray | None = None
     material_increment_sigma2_factor: np.ndarray | None = None
+    error_log_spread: np.ndarray | None = None
     pair_survival_phase_factor: np.ndarray | None = None
     phase_edges_deg: np.ndarray = field(default_factory=lambda: PHASE_EDGES_DEG.copy())
     pair_survival_material_factor: np.ndarray | None = None
@@ -346,6 +350,15 @@ class SiftCalibration:
         col = np.where(inside, m, 0)
         weights = self._clipped_range_weights(fp)
         return tuple(np.where(inside, self._by_range(t, fp, col, weights), 1.0) for t in tabs)
+
+    def error_spread_at(self, footprint_m_per_px: ArrayLike) -> np.ndarray:
+        """:attr:`error_log_spread` at this image scale (linear in log footprint, held beyond the
+        calibrated ones); 0 where the file has none."""
+        fp = np.asarray(footprint_m_per_px, dtype=float)
+        if self.error_log_spread is None:
+            return np.zeros(fp.shape)
+        i, j, w = self._clipped_range_weights(fp)
+        return (1.0 - w) * self.error_log_spread[i] + w * self.error_log_spread[j]
 
     def _inflation_at(self, tables: tuple, footprint_m_per_px: ArrayLike, angle_deg: ArrayLike,
                       track_class: ArrayLike) -> list[np.ndarray]:
