@@ -87,6 +87,11 @@ def test_the_shipped_file_has_the_inflation_with_its_provenance(data):
         assert np.all((cal.sigma2_inflation > 0.2) & (cal.sigma2_inflation < 5.0))
         # much of a keypoint's error is the same at two epochs 1° apart: an increment sees less of it
         assert np.mean(cal.increment_sigma2_inflation) < np.mean(cal.sigma2_inflation)
+        # beyond the tables and the material factors the NEES keep their mean (3) but not a Gaussian's
+        # median (2.08-2.37): the heavy tail the lognormal spread reproduces
+        assert np.allclose(t["normalized_nees_mean"], 3.0, rtol=0.05)
+        assert max(t["normalized_nees_median"]) < 1.6
+        assert np.all((cal.error_log_spread > 0.5) & (cal.error_log_spread < 1.5))
 
 
 def test_epoch_tables_scale_the_inflation_by_the_epochs_own_factor(data):
