@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from vision.calibration.model import _bin_index
+from vision.calibration.tables import bin_index
 from vision.sensor import SensorModel
 
 __all__ = ["BRIGHTNESS_EDGES", "EXPOSURE_PERCENTILE", "brightness_bin", "entry_brightness", "exposure_sample", "face_radiance",
@@ -108,7 +108,7 @@ def brightness_bin(b: ArrayLike) -> np.ndarray:
     """Index of the bin of :data:`BRIGHTNESS_EDGES` of relative brightness ``b`` (NaN: bin 0), by the
     calibration's own binning (one comparison per edge: this runs on every detection candidate)."""
     b = np.nan_to_num(np.asarray(b, dtype=float), nan=0.0)
-    return _bin_index(BRIGHTNESS_EDGES, b, "right", 0, len(BRIGHTNESS_EDGES) - 2)
+    return bin_index(BRIGHTNESS_EDGES, b, "right", 0, len(BRIGHTNESS_EDGES) - 2)
 
 
 def exposure_sample(target):

@@ -109,7 +109,7 @@ def test_tabulated_density_equals_its_definition_bit_for_bit(name):
 
 
 def test_bins_by_comparison_equal_searchsorted():
-    from vision.calibration.model import _bin_index
+    from vision.calibration.tables import bin_index
 
     rng = np.random.default_rng(4)
     for edges in (SIZE_EDGES_PX, np.array([-1.0, 0.0, 0.26, 0.5, 1.0001]), np.array([5.0, 10.0, 20.0, 30.0]), np.array([2.0])):
@@ -119,7 +119,7 @@ def test_bins_by_comparison_equal_searchsorted():
                 if hi < lo:
                     continue
                 ref = np.clip(np.searchsorted(edges, x, side=side) - 1, lo, hi)
-                np.testing.assert_array_equal(_bin_index(edges, x, side, lo, hi), ref)
+                np.testing.assert_array_equal(bin_index(edges, x, side, lo, hi), ref)
 
 
 @pytest.mark.parametrize("name", ["fy1", "topex"])

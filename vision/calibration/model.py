@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike
 
 from vision.calibration.detection_factors import detection_tables
 from vision.calibration.survival_factors import survival_factors
-from vision.calibration.tables import CalibrationTableEmpty
+from vision.calibration.tables import CalibrationTableEmpty, bin_index
 from vision.calibration.tables import fill_nearest as _fill_nearest
 from vision.calibration.tables import table as _table
 
@@ -69,21 +69,6 @@ def _sigma_by_range(t: dict) -> np.ndarray:
         ok = np.isfinite(v) & (counts[r] >= _MIN_PAIRS_PER_BIN) & (v >= _MIN_SIGMA_PX)
         rows.append(np.where(ok, v, pooled))
     return np.stack(rows)
-
-
-def _bin_index(edges: np.ndarray, x: ArrayLike, side: str, lo: int, hi: int) -> np.ndarray:
-    """``clip(searchsorted(edges, x, side) - 1, lo, hi)`` for a short sorted table ``edges``, by one
-    comparison per edge between ``lo`` and ``hi`` (a binary search per element is several times
-    slower on large ``x``); NaN sorts last, as in ``searchsorted``."""
-    x = np.asarray(x, dtype=float)
-    above = np.greater_equal if side == "right" else np.greater
-    out = np.full(x.shape, lo, dtype=np.intp)
-    for e in edges[lo + 1:hi + 1]:
-        out += above(x, e)
-    nan = np.isnan(x)
-    if nan.any():
-        out[nan] = hi
-    return out
 
 
 def track_class(n_track_views: ArrayLike, n_cameras: int) -> np.ndarray:
@@ -281,7 +266,7 @@ class SiftCalibration:
         if lf.size == 1:
             z = np.zeros(x.shape, dtype=int)
             return z, z, np.zeros(x.shape)
-        i = _bin_index(lf, x, "left", 0, lf.size - 2)
+        i = bin_index(lf, x, "left", 0, lf.size - 2)
         w = (x - np.take(lf, i)) / np.take(dlf, i)
         return i, i + 1, w
 
@@ -310,7 +295,7 @@ class SiftCalibration:
         image scale ``footprint_m_per_px`` (interpolated in log footprint, held beyond the calibrated
         ones) when given, else pooled over the calibrated ranges."""
         s = np.asarray(size_px, dtype=float)
-        b = _bin_index(SIZE_EDGES_PX, np.nan_to_num(s), "right", 0, len(self.sigma_px) - 1)
+        b = bin_index(SIZE_EDGES_PX, np.nan_to_num(s), "right", 0, len(self.sigma_px) - 1)
         if footprint_m_per_px is None:
             return np.where(np.isfinite(s), self.sigma_px[b], np.nan)
         fp = np.broadcast_to(np.asarray(footprint_m_per_px, dtype=float), s.shape)
@@ -369,7 +354,7 @@ class SiftCalibration:
         w = np.clip(w, 0.0, 1.0)
         if grid.size == 1:
             return [(1.0 - w) * tab[i, 0, c] + w * tab[j, 0, c] for tab in tables]
-        k = _bin_index(grid, ang, "left", 0, grid.size - 2)
+        k = bin_index(grid, ang, "left", 0, grid.size - 2)
         u = np.clip((ang - grid[k]) / (grid[k + 1] - grid[k]), 0.0, 1.0)
 
         def at(tab, r):
@@ -425,7 +410,7 @@ class SiftCalibration:
     @staticmethod
     def view_bin(cos_view: ArrayLike) -> np.ndarray:
         """Index of the view-angle bin (:data:`COS_VIEW_EDGES`) of surfaces at this signed cosine."""
-        return _bin_index(COS_VIEW_EDGES, np.abs(cos_view), "right", 0, len(COS_VIEW_EDGES) - 2)
+        return bin_index(COS_VIEW_EDGES, np.abs(cos_view), "right", 0, len(COS_VIEW_EDGES) - 2)
 
     def density_at(self, bins: tuple, sun_bin: ArrayLike, material: ArrayLike | None = None) -> np.ndarray:
         """:meth:`density` at the points of ``bins`` (:meth:`density_bins`): the power law in footprint
@@ -495,7 +480,7 @@ class SiftCalibration:
 
     def sun_bin(self, cos_sun: ArrayLike, lit: ArrayLike) -> np.ndarray:
         """Sun bin of surfaces with this Sun-incidence cosine (lit side) and lit flag."""
-        b = _bin_index(SUN_BIN_EDGES, cos_sun, "right", 1, len(SUN_BIN_EDGES) - 2)
+        b = bin_index(SUN_BIN_EDGES, cos_sun, "right", 1, len(SUN_BIN_EDGES) - 2)
         return np.where(np.asarray(lit, dtype=bool), b, 0)
 
     def max_density(self, footprint_m_per_px: float) -> float:
