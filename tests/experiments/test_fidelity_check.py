@@ -100,12 +100,18 @@ def test_table_commands_refuse_a_missing_file_and_an_unmatched_cell_with_exit_2(
 
 
 def test_a_geometric_cell_is_consistent_with_its_own_noise_model():
-    """The calibrated geometric mode draws each keypoint's error with the σ it reports, so its
-    triangulation NEES is 3 (within 10 % over a few thousand points), and every step has a bound."""
+    """The calibrated geometric mode draws each keypoint's error with the σ it reports times factors of
+    mean 1 over the calibration's points (its surface material's, a heavy-tailed multiplier), so its
+    triangulation NEES keeps a mean near 3 (within 15 % over ten thousand points of one cell; the
+    cell's surfaces are not the calibration's mix) and has the heavy-tailed shape the calibration
+    measured: a median below 0.55 of the mean, where Gaussian errors give 0.69-0.79 (two- and
+    three-view points).  Every trial with a few tens of tracks has a bound."""
     res = check_cell(CheckCell(target="fy1", mode="geometric_calibrated", n_views=3, distance_m=40.0,
-                               axis_angle_deg=10.0, trials=4, steps=4))
-    assert res["nees_points"] > 1000
-    assert res["nees_mean"] == pytest.approx(3.0, rel=0.10)
+                               axis_angle_deg=10.0, trials=12, steps=4))
+    assert res["nees_points"] > 5000
+    assert res["nees_mean"] == pytest.approx(3.0, rel=0.15)
+    assert res["nees_median"] < 0.55 * res["nees_mean"]
     p = res["per_trial"]
-    assert len(p["tracks"]) == 4 and min(p["tracks"]) > 20
-    assert np.all(np.isfinite(p["crlb_deg"])) and np.all(np.asarray(p["crlb_deg"]) > 0)
+    tracks, crlb = np.asarray(p["tracks"]), np.asarray(p["crlb_deg"])
+    assert len(tracks) == 12 and np.median(tracks) > 20
+    assert np.all(np.isfinite(crlb[tracks > 20])) and np.all(crlb[tracks > 20] > 0)
