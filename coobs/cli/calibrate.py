@@ -88,6 +88,7 @@ def calibrate(
                                  help="Comma-separated camera ranges, m."),
     seed: int = typer.Option(DEFAULT.seed, "--seed", help="Root seed."),
     nees_only: bool = typer.Option(False, "--nees-only", help="Only (re)measure the triangulation σ² inflation "
+                                   "(per track class, per surface material, and the errors' heavy-tail spread) "
                                    "of an existing calibration file (--out, default the shipped one) with its "
                                    "own targets, ranges and seed (--attitudes: its attitudes per target and range); the other "
                                    "tables are kept."),
