@@ -2,9 +2,11 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.stats import chi2
 
-from vision.calibration.scale_mixture import mixture_cdf, spread_for_median
+from vision.calibration.scale_mixture import location_information, mixture_cdf, spread_for_median
 
 
 def test_without_spread_the_mixture_is_the_scaled_chi2():
@@ -35,3 +37,26 @@ def test_a_median_at_or_above_the_gaussian_gives_no_spread_and_bad_input_one_lin
     assert spread_for_median(5.0, {2: 3, 3: 4}) == 0.0
     with pytest.raises(ValueError, match="spread_for_median: need a positive median"):
         spread_for_median(float("nan"), {3: 10})
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.floats(0.0, 1.5), st.floats(0.01, 0.3))
+def test_a_heavy_tail_carries_more_location_information_than_a_gaussian_and_less_than_known_multipliers(s, ds):
+    """At unit variance the Gaussian is the least informative about a shift (information 1); knowing
+    each error's multiplier would give E[1/w] = e^{s²}; the mixture lies between and grows with s."""
+    info = location_information(s)
+    assert 1.0 - 1e-6 <= info <= np.exp(s * s) + 1e-6
+    assert location_information(s + ds) >= info - 1e-6
+
+
+def test_location_information_is_the_variance_of_the_score():
+    """Monte Carlo: the mean square of the score p'/p of errors drawn from the mixture (s = 1)."""
+    rng = np.random.default_rng(11)
+    s, n = 1.0, 400_000
+    x = np.sqrt(np.exp(s * rng.normal(size=n) - 0.5 * s * s)) * rng.normal(size=n)
+    z, w = np.polynomial.hermite_e.hermegauss(81)
+    w = w / w.sum()
+    var = np.exp(s * z - 0.5 * s * s)
+    pdf = w * np.exp(-0.5 * x[:, None] ** 2 / var) / np.sqrt(2 * np.pi * var)
+    score = np.sum(pdf * x[:, None] / var, axis=1) / np.sum(pdf, axis=1)
+    assert location_information(s) == pytest.approx(np.mean(score**2), rel=0.02)
