@@ -99,13 +99,13 @@ def _inflation(t: dict) -> dict:
             rows.append(np.where(np.isfinite(tab), tab, np.nanmean(tab, axis=1, keepdims=True)))
         return np.stack(rows)
 
-    mat = {k: np.asarray(nees[k], dtype=float) if k in nees else None      # files before the material factors
-           for k in ("material_sigma2_factor", "material_increment_sigma2_factor", "error_log_spread")}
+    beyond = {k: np.asarray(nees[k], dtype=float) if k in nees else None   # the errors beyond the class tables
+              for k in ("material_sigma2_factor", "material_increment_sigma2_factor", "error_log_spread")}
     epoch = "epoch_sigma2_inflation" in nees          # files before the epoch factor have only the tables
     return {"nees_angle_deg": np.asarray(nees["angle_deg"], dtype=float), "sigma2_inflation": table("sigma2_inflation"),
             "increment_sigma2_inflation": table("increment_sigma2_inflation"),
             "epoch_sigma2_inflation": table("epoch_sigma2_inflation") if epoch else None,
-            "epoch_increment_sigma2_inflation": table("epoch_increment_sigma2_inflation") if epoch else None, **mat}
+            "epoch_increment_sigma2_inflation": table("epoch_increment_sigma2_inflation") if epoch else None, **beyond}
 
 
 @dataclass(frozen=True, eq=False)
