@@ -154,14 +154,15 @@ def _material_stats(records: list, table: np.ndarray, n_materials: int, dof_of_c
     sums = np.zeros((*table.shape, n_materials, 2))
     np.add.at(sums, (a[on], c[on], m[on]), np.c_[r[on, 3], np.ones(int(on.sum()))])
     f = _material_factor(sums, table, MATERIAL_PRIOR_POINTS)
+    points = sums[..., 1].sum(axis=(0, 1)).astype(int)
     norm = 3.0 * r[on, 3] / (table[a[on], c[on]] * f[m[on]])
     ok = np.isfinite(norm)
     if not ok.any():
-        return f, sums[..., 1].sum(axis=(0, 1)).astype(int), np.nan, np.nan, np.nan
+        return f, points, np.nan, np.nan, np.nan
     median = float(np.median(norm[ok]))
     dofs = dof_of_class[c[on][ok]]
     spread = spread_for_median(median, {int(k): int(np.sum(dofs == k)) for k in np.unique(dofs)})
-    return f, sums[..., 1].sum(axis=(0, 1)).astype(int), median, float(np.mean(norm[ok])), spread
+    return f, points, median, float(np.mean(norm[ok])), spread
 
 
 def _sun(g: np.random.Generator, axis: np.ndarray, max_deg: float) -> np.ndarray:
@@ -228,18 +229,18 @@ def measure_inflation(target: Target, cal: SiftCalibration, ranges_m: tuple[floa
                     acc.add("nees", a, cls, res.nees)
                     acc.add("nees_epoch", a, cls, res.nees / s2)
                     acc.add("plain", a, cls, res.nees_plain)
-                    recs["nees"].append(np.c_[np.full(cls.size, a), cls, track_material(target, obs.X_T_true[res.index]),
-                                              res.nees])
+                    mat = track_material(target, obs.X_T_true)                 # every track's surface
+                    recs["nees"].append(np.c_[np.full(cls.size, a), cls, mat[res.index], res.nees])
                     if res.nees.size >= 8:
                         per_epoch.append((float(np.mean(res.nees)), s2))
                     eb = None if epochs[1][1] is None else _epoch(camera, views.T_CW[:n_cam], epochs[1][1][:n_cam],
                                                                    epochs[1][0][:n_cam], target, q2, cal, spec)
                     if eb is not None:
                         v, ia = increment_nees((obs, tri), eb[:2], q, q2, float(range_m) / f_px)
-                        acc.add("inc", a, track_class(tri.views_used[ia].sum(axis=1), n_cam), v)
-                        acc.add("inc_epoch", a, track_class(tri.views_used[ia].sum(axis=1), n_cam), v / s2)
-                        recs["inc"].append(np.c_[np.full(v.size, a), track_class(tri.views_used[ia].sum(axis=1), n_cam),
-                                                 track_material(target, obs.X_T_true[ia]), v])
+                        ci = track_class(tri.views_used[ia].sum(axis=1), n_cam)
+                        acc.add("inc", a, ci, v)
+                        acc.add("inc_epoch", a, ci, v / s2)
+                        recs["inc"].append(np.c_[np.full(v.size, a), ci, mat[ia], v])
             if progress:
                 progress()
         tabs["mean"].append(acc.table("nees", np.mean))
