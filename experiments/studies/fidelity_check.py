@@ -46,8 +46,8 @@ from vision.calibration import load_calibration
 from vision.camera import PinholeCamera
 from vision.target import Target, fy1_target, load_mesh
 
-__all__ = ["MODES", "CheckCell", "check_cell", "median_ratio_interval", "nees_of_frame", "paired_ratio_interval",
-           "paired_table", "same_surface_points", "main"]
+__all__ = ["MODES", "CheckCell", "check_cell", "median_interval", "median_ratio_interval", "nees_of_frame",
+           "paired_ratio_interval", "paired_table", "same_surface_points", "split_table", "main"]
 
 #: mode name → (observer, noise model)
 MODES = {
@@ -262,7 +262,15 @@ def paired_ratio_interval(num: Sequence[float], den: Sequence[float], *, level: 
     n = min(a.size, b.size)
     a, b = a[:n], b[:n]
     ok = np.isfinite(a) & np.isfinite(b) & (b > 0)
-    r = a[ok] / b[ok]
+    return median_interval(a[ok] / b[ok], level=level, draws=draws, seed=seed)
+
+
+def median_interval(values: Sequence[float], *, level: float = 0.9, draws: int = 2000,
+                    seed: int = 0) -> tuple[float, float, float]:
+    """Median of the per-trial ``values`` (non-finite ones dropped) and its bootstrap interval
+    (percentile, ``level``, the trials resampled); NaN for all three when nothing is left."""
+    r = np.asarray(values, dtype=float)
+    r = r[np.isfinite(r)]
     if r.size == 0:
         return float("nan"), float("nan"), float("nan")
     boot = np.median(np.random.default_rng(seed).choice(r, (draws, r.size)), axis=1)
@@ -305,6 +313,39 @@ def paired_table(rendered: dict, calibrated: dict) -> str:
     return "\n".join(lines)
 
 
+def split_table(result: dict, size: int = 20) -> str:
+    """The sampling floor of the ±25 % criterion, from one result file: per cell and metric, the medians
+    of its disjoint runs of ``size`` consecutive trials (other attitudes, the same mode) and how many
+    ordered pairs of runs (each run in turn the reference) have a ratio of medians within ±25 %.  Two
+    modes compared on ``size`` trials whose attitudes are not shared can do no better than a mode
+    against itself.  Last line: the counts per metric and in all."""
+    if size < 1:
+        raise ValueError(f"size must be >= 1 trial, got {size!r}")
+    head = "| views, range, angle | runs | " + " | ".join(m[1] for m in _METRICS) + " |"
+    lines = [head, "|---" * (len(_METRICS) + 2) + "|"]
+    count = {k: [0, 0] for k, _, _ in _METRICS}
+    for c in result["cells"]:
+        runs = len(c["per_trial"]["tracks"]) // size
+        if runs < 2:
+            raise ValueError(f"cell ({c['n_views']}, {c['distance_m']:g} m, {c['axis_angle_deg']:g}°) has "
+                             f"{len(c['per_trial']['tracks'])} trials: fewer than two runs of size {size}")
+        row = [f"{c['n_views']}, {c['distance_m']:g} m, {c['axis_angle_deg']:g}°", str(runs)]
+        for k, _, fmt in _METRICS:
+            v = np.asarray(c["per_trial"][k][:runs * size], dtype=float).reshape(runs, size)
+            med = np.array([np.median(x[np.isfinite(x)]) if np.isfinite(x).any() else np.nan for x in v])
+            ratio = med[:, None] / med[None, :]
+            pairs = ~np.eye(runs, dtype=bool)
+            hit = int(np.sum(np.abs(ratio[pairs] - 1.0) <= 0.25))
+            count[k][0] += hit
+            count[k][1] += int(pairs.sum())
+            row.append(f"{fmt.format(np.nanmin(med))}–{fmt.format(np.nanmax(med))} ({hit}/{int(pairs.sum())})")
+        lines.append("| " + " | ".join(row) + " |")
+    total = [sum(v[i] for v in count.values()) for i in (0, 1)]
+    lines.append("\nwithin ±25 % of each other: " + "; ".join(f"{t} {count[k][0]}/{count[k][1]}" for k, t, _ in _METRICS)
+                 + f"; in all {total[0]}/{total[1]}")
+    return "\n".join(lines)
+
+
 def markdown_table(rendered: dict, fixed: dict, calibrated: dict) -> str:
     """Per cell: rendered / fixed geometric / calibrated geometric medians over the trials the three
     runs have in common (the first ones: the trial seeds do not depend on the count); ✓ where the
@@ -344,8 +385,9 @@ def nees_table(results: list[dict]) -> str:
     """Markdown table of rendered runs' triangulation NEES (mean / median over a cell's correct points)
     with the size σ, the table's inflation and the epoch-scaled σ (the rendered mode's), and ML / CRLB
     with the bound of the increment σ, for the Gaussian ML fit and the Cauchy-kernel one: the median
-    over the trials of the per-trial ratio and, after it, the RMS over the trials (the tail of bad
-    trials); ✓: mean NEES within 10 % of 3, median ML / CRLB within 0.9-1.15."""
+    over the trials of the per-trial ratio with its 90 % bootstrap interval (:func:`median_interval`)
+    and, after it, the RMS over the trials (the tail of bad trials); ✓: mean NEES within 10 % of 3,
+    median ML / CRLB within 0.9-1.15; ~: the median not, but its interval reaches into 0.9-1.15."""
     lines = ["| target | views, range, angle | points | NEES, size σ | NEES, table σ | NEES, epoch-scaled σ "
              "| ML / CRLB, increment σ (median, RMS) | ML failed steps | Cauchy-kernel ML / CRLB (median, RMS) |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -359,7 +401,9 @@ def nees_table(results: list[dict]) -> str:
                 r = c.get(f"{name}_over_crlb_increment", float("nan"))
                 if not np.isfinite(r):
                     return "–"
-                return (f"{r:.2f}{' ✓' if 0.9 <= r <= 1.15 else ''}, "
+                _, lo, hi = median_interval(c["per_trial"].get(f"{name}_over_crlb_increment", [r]))
+                mark = " ✓" if 0.9 <= r <= 1.15 else " ~" if lo <= 1.15 and hi >= 0.9 else ""
+                return (f"{r:.2f} [{lo:.2f}–{hi:.2f}]{mark}, "
                         f"{c.get(f'{name}_over_crlb_increment_pooled', float('nan')):.2f}")
             lines.append(f"| {res['target']} | {c['n_views']}, {c['distance_m']:g} m, {c['axis_angle_deg']:g}° | "
                          f"{c['nees_points']} | {nees('nees_size')} | {nees('nees_table')} | {nees('nees')} | "
@@ -383,6 +427,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--paired-table", nargs=2, metavar=("RENDERED", "CALIBRATED"),
                     help="print the per-trial (paired) ratios of a geometric result file to a rendered one "
                          "(each a comma-separated list whose cells are joined) instead of running")
+    ap.add_argument("--split-table", type=Path, metavar="RESULT",
+                    help="print how far the medians of disjoint runs of --split-size trials of one result file "
+                         "agree (the sampling floor of the ±25 %% criterion) instead of running")
+    ap.add_argument("--split-size", type=int, default=20, help="trials per run of --split-table (default 20)")
     ap.add_argument("--nees-table", nargs="+", metavar="RENDERED",
                     help="print the triangulation NEES table of rendered result files instead of running")
     ap.add_argument("--trials", type=int, default=20)
@@ -398,8 +446,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         if a.paired_table:
             print(paired_table(*(_joined(arg) for arg in a.paired_table)))
             return
+        if a.split_table:
+            print(split_table(json.loads(a.split_table.read_text(encoding="utf-8")), a.split_size))
+            return
     except (OSError, ValueError) as exc:     # a missing or unreadable file, cells in one file only
-        ap.error(f"--table/--paired-table: {exc}")
+        opt = "--table" if a.table else "--paired-table" if a.paired_table else "--split-table"
+        ap.error(f"{opt}: {exc}")
     if a.nees_table:
         print(nees_table([json.loads(Path(p).read_text(encoding="utf-8")) for p in a.nees_table]))
         return

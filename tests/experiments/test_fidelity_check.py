@@ -9,9 +9,12 @@ from experiments.studies.fidelity_check import (
     check_cell,
     main,
     markdown_table,
+    median_interval,
     median_ratio_interval,
+    nees_table,
     paired_ratio_interval,
     paired_table,
+    split_table,
 )
 
 
@@ -81,6 +84,54 @@ def test_paired_ratio_sees_a_bias_that_the_ratio_of_medians_cannot():
     assert all(np.isnan(paired_ratio_interval([np.nan], [1.0])))
 
 
+def test_median_interval_has_the_normal_theory_width():
+    """400 standard-normal trials: the 90 % bootstrap interval of the median is ±1.645·√(π/2)/√n = ±0.103
+    (asymptotic variance of the sample median, π/(2n)) within 25 %, and holds the median; NaN are dropped."""
+    x = np.random.default_rng(3).standard_normal(400)
+    m, lo, hi = median_interval(np.r_[x, np.nan, np.inf])
+    assert m == np.median(x) and lo <= m <= hi
+    assert 0.5 * (hi - lo) == pytest.approx(1.645 * np.sqrt(np.pi / 2.0 / 400), rel=0.25)
+    assert all(np.isnan(median_interval([np.nan])))
+
+
+def test_split_table_counts_the_runs_whose_medians_agree_within_25_percent():
+    """Three runs of 20 trials with medians 1, 1.1 and 2: of the six ordered pairs only 1.1/1 and 1/1.1
+    are within ±25 %, for every metric (8 of 24 in all); a file of fewer than two runs is refused."""
+    rng = np.random.default_rng(4)
+    runs = [m * np.exp(rng.normal(0.0, 0.01, 20)) for m in (1.0, 1.1, 2.0)]
+    runs = [r * m / np.median(r) for r, m in zip(runs, (1.0, 1.1, 2.0), strict=True)]   # exact medians
+    table = split_table(_result(_trials(np.concatenate(runs))), size=20)
+    row = table.splitlines()[2]
+    assert row.count("(2/6)") == 4 and row.startswith("| 2, 40 m, 10° | 3 | 1–2 (2/6) | 1.000–2.000 (2/6)")
+    assert table.splitlines()[-1].endswith("in all 8/24")
+    # consecutive runs: the trial order is the seed order, so runs of 20 are the 20-trial files' trials
+    assert split_table(_result(_trials(np.ones(40))), size=20).splitlines()[-1].endswith("in all 8/8")
+    with pytest.raises(ValueError, match="fewer than two runs of size 30"):
+        split_table(_result(_trials(np.ones(40))), size=30)
+    with pytest.raises(ValueError, match="size must be >= 1"):
+        split_table(_result(_trials(np.ones(40))), size=0)
+
+
+def test_nees_table_marks_an_ml_ratio_whose_interval_reaches_the_band():
+    """ML / CRLB median 1.30: no mark when 40 steady trials put its interval above 1.15, ~ when 6 spread
+    trials reach into 0.9-1.15, ✓ for a median inside the band."""
+    rng = np.random.default_rng(6)
+
+    def row(values):
+        v = np.asarray(values, dtype=float)
+        cell = {"n_views": 2, "distance_m": 40.0, "axis_angle_deg": 10.0, "nees_points": 10,
+                "ml_failed_steps": 0.0, "ml_over_crlb_increment": float(np.median(v)),
+                "ml_over_crlb_increment_pooled": float(np.sqrt(np.mean(v**2))),
+                "per_trial": {"ml_over_crlb_increment": list(v)}}
+        return nees_table([{"target": "fy1", "cells": [cell]}]).splitlines()[2].split(" | ")[6]
+
+    steady = 1.3 * np.exp(rng.normal(0.0, 0.02, 40))
+    spread = 1.3 * np.exp(rng.normal(0.0, 0.6, 6))
+    assert row(steady / np.median(steady) * 1.3).startswith("1.30 [1.") and "✓" not in row(steady) and "~" not in row(steady)
+    assert "~" in row(spread / np.median(spread) * 1.3)
+    assert "✓" in row(np.full(5, 1.0))
+
+
 def test_table_commands_refuse_a_missing_file_and_an_unmatched_cell_with_exit_2(tmp_path, capsys):
     """A result file that is not there, or a geometric cell the rendered file lacks: one line naming
     the option, exit code 2, no table printed."""
@@ -96,7 +147,7 @@ def test_table_commands_refuse_a_missing_file_and_an_unmatched_cell_with_exit_2(
             main(args)
         assert exc.value.code == 2
         out, err = capsys.readouterr()
-        assert out == "" and "error: --table/--paired-table: " in err.splitlines()[-1]
+        assert out == "" and "error: --paired-table: " in err.splitlines()[-1]
 
 
 def test_a_geometric_cell_is_consistent_with_its_own_noise_model():
