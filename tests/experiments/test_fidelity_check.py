@@ -14,6 +14,7 @@ from experiments.studies.fidelity_check import (
     nees_table,
     paired_ratio_interval,
     paired_table,
+    pooled_mean_interval,
     split_table,
 )
 
@@ -94,6 +95,19 @@ def test_median_interval_has_the_normal_theory_width():
     assert all(np.isnan(median_interval([np.nan])))
 
 
+def test_pooled_mean_interval_is_the_mean_of_all_values_with_the_trials_standard_error():
+    """400 trials of 50 values each whose trial means are N(3, 0.5²): the pooled mean is the sum over
+    the count exactly, and its 90 % interval is ±1.645 · 0.5 / √400 = ±0.041 within 20 % (the
+    trials, not the 20 000 values, set it); trials without values are dropped."""
+    rng = np.random.default_rng(8)
+    means = rng.normal(3.0, 0.5, 400)
+    sums, counts = 50.0 * means, np.full(400, 50.0)
+    m, lo, hi = pooled_mean_interval(np.r_[sums, 0.0], np.r_[counts, 0.0])
+    assert m == pytest.approx(sums.sum() / counts.sum(), rel=1e-12) and lo <= m <= hi
+    assert 0.5 * (hi - lo) == pytest.approx(1.645 * 0.5 / np.sqrt(400), rel=0.2)
+    assert all(np.isnan(pooled_mean_interval([0.0], [0.0])))
+
+
 def test_split_table_counts_the_runs_whose_medians_agree_within_25_percent():
     """Three runs of 20 trials with medians 1, 1.1 and 2: of the six ordered pairs only 1.1/1 and 1/1.1
     are within ±25 %, for every metric (8 of 24 in all); a file of fewer than two runs is refused."""
@@ -130,6 +144,26 @@ def test_nees_table_marks_an_ml_ratio_whose_interval_reaches_the_band():
     assert row(steady / np.median(steady) * 1.3).startswith("1.30 [1.") and "✓" not in row(steady) and "~" not in row(steady)
     assert "~" in row(spread / np.median(spread) * 1.3)
     assert "✓" in row(np.full(5, 1.0))
+
+
+def test_nees_table_gives_a_mean_nees_outside_ten_percent_its_interval_over_the_trials():
+    """Mean NEES 2.5 (outside 2.7-3.3): with trials spread as N(2.5, 1²) over 10 trials its interval
+    reaches 2.7 (~); over 400 steady trials (N(2.5, 0.1²)) it does not (no mark)."""
+    rng = np.random.default_rng(9)
+
+    def cell(trial_means):
+        m = np.asarray(trial_means, dtype=float)
+        m = m - m.mean() + 2.5
+        return {"n_views": 2, "distance_m": 80.0, "axis_angle_deg": 10.0, "nees_points": 10 * m.size,
+                "nees_mean": 2.5, "nees_median": 1.0, "ml_failed_steps": 0.0,
+                "per_trial": {"trial_nees_sum": list(10.0 * m), "trial_nees_count": [10.0] * m.size}}
+
+    def col(c):
+        return nees_table([{"target": "fy1", "cells": [c]}]).splitlines()[2].split(" | ")[5]
+
+    spread, steady = col(cell(rng.normal(2.5, 1.0, 10))), col(cell(rng.normal(2.5, 0.1, 400)))
+    assert spread.startswith("2.50 / 1.00 [") and spread.endswith("~")
+    assert steady.startswith("2.50 / 1.00 [2.4") and "~" not in steady and "✓" not in steady
 
 
 def test_table_commands_refuse_a_missing_file_and_an_unmatched_cell_with_exit_2(tmp_path, capsys):
