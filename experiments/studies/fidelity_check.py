@@ -13,7 +13,8 @@ plain statistic beside it).
 
 ``python -m experiments.studies.fidelity_check --help`` runs it, ``--table`` prints the comparison
 (``docs/reproduction.md``) and ``--paired-table`` the per-trial ratios of two modes, which the trials'
-common attitudes make far steadier than the ratio of two medians.
+common attitudes make far steadier than the ratio of two medians; ``--split-table`` how far one
+mode's medians over disjoint runs of trials agree with each other (what a number of trials can tell).
 """
 
 from __future__ import annotations
@@ -478,6 +479,8 @@ def main(argv: Sequence[str] | None = None) -> None:
             print(paired_table(*(_joined(arg) for arg in a.paired_table)))
             return
         if a.split_table:
+            if a.split_size < 1:
+                ap.error(f"--split-size: must be at least 1 trial, got {a.split_size}")
             print(split_table(json.loads(a.split_table.read_text(encoding="utf-8")), a.split_size))
             return
     except (OSError, ValueError) as exc:     # a missing or unreadable file, cells in one file only

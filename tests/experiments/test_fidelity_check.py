@@ -167,8 +167,8 @@ def test_nees_table_gives_a_mean_nees_outside_ten_percent_its_interval_over_the_
 
 
 def test_table_commands_refuse_a_missing_file_and_an_unmatched_cell_with_exit_2(tmp_path, capsys):
-    """A result file that is not there, or a geometric cell the rendered file lacks: one line naming
-    the option, exit code 2, no table printed."""
+    """A result file that is not there, or a geometric cell the rendered file lacks, or a file too short
+    to split, or a run size below one trial: one line naming the option, exit code 2, no table printed."""
     import json
 
     rendered, other = tmp_path / "r.json", tmp_path / "g.json"
@@ -182,6 +182,14 @@ def test_table_commands_refuse_a_missing_file_and_an_unmatched_cell_with_exit_2(
         assert exc.value.code == 2
         out, err = capsys.readouterr()
         assert out == "" and "error: --paired-table: " in err.splitlines()[-1]
+    # --split-table: a file of one run of 20 trials, and a run size below one trial
+    for args, named in ((["--split-table", str(rendered)], "--split-table: "),
+                        (["--split-table", str(rendered), "--split-size", "0"], "--split-size: ")):
+        with pytest.raises(SystemExit) as exc:
+            main(args)
+        assert exc.value.code == 2
+        out, err = capsys.readouterr()
+        assert out == "" and f"error: {named}" in err.splitlines()[-1]
 
 
 def test_a_geometric_cell_is_consistent_with_its_own_noise_model():
